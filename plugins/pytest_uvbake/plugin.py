@@ -1,0 +1,1 @@
+"""pytest plugin for texture-regression images (built in a later issue)."""

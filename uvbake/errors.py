@@ -1,0 +1,20 @@
+"""The errors uvbake raises.
+
+Every message names the problem and the way out, in one line, so the CLI can print it as it is.
+"""
+
+
+class UvbakeError(Exception):
+    """Base class of every error uvbake raises on purpose."""
+
+
+class InputError(UvbakeError, ValueError):
+    """The input (mesh, array, option or path) is not usable; the message says how to fix it."""
+
+
+class ChartError(InputError):
+    """A chart is not a valid disk-with-holes; the message names the chart and the fix."""
+
+
+class SolverError(UvbakeError, RuntimeError):
+    """A solver failed on valid input."""
