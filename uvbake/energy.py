@@ -1,0 +1,277 @@
+"""The weighted area/angle distortion of Mejia, Acosta and Ruiz-Salguero (2017), vectorised.
+
+For triangle t with 3D vertices x1, x2, x3 we take an orthonormal basis (e1, e2) of its plane,
+right-handed about its normal n = (x2-x1) x (x3-x1), and the isometric 2D coordinates of its corners
+about the centroid, R (2x3). Q = R^T (R R^T)^-1 is the right pseudo-inverse of R, and with the UVs of
+the corners U_t (2x3) the Jacobian of the affine map from the triangle to the plane is A = U_t Q (the
+centroid drops out because the columns of R sum to zero, so A is linear in U and invariant to
+translating the map). Writing a = Q[:, 0] and b = Q[:, 1] (3-vectors), u and v the corner UVs:
+
+    A11 = a.u   A12 = b.u   A21 = a.v   A22 = b.v
+    D_area  = (det A - 1)^2
+    D_angle = (A11 - A22)^2 + (A12 + A21)^2          (the paper's Eq. 6)
+    F       = sum_t w_t [alpha D_area + (1 - alpha) D_angle]
+
+w_t = 1 is the paper's F; other weights (the triangle areas) serve the LSCM initial map.
+
+Per-triangle unknowns are ordered [u1 u2 u3 v1 v2 v3]; globally the map is the interleaved vector
+x = [u_0, v_0, u_1, v_1, ...] of length 2n, so vertex i owns entries 2i and 2i+1. D_angle is
+quadratic in x (r1 = A11 - A22 and r2 = A12 + A21 are linear), det A is a quadratic form in x, and so
+
+    grad D_area = 2 (det - 1) grad(det)
+    Hess D_area = 2 grad(det) grad(det)^T + 2 (det - 1) Hess(det)     (indefinite where det < 1)
+
+Every quantity is computed for all triangles at once with numpy; the 6x6 blocks are scattered into
+a CSC matrix whose pattern (the mesh's vertex adjacency, two unknowns per vertex) is built once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import InputError
+
+
+def triangle_frames(V, F):
+    """Isometric 2D corner coordinates of every triangle and the pseudo-inverse of their frame.
+
+    Parameters
+    ----------
+    V : (n,3) float array
+    F : (m,3) int array
+
+    Returns
+    -------
+    R : (m,2,3) float array
+        Corner coordinates in the triangle's own right-handed orthonormal frame, about its centroid.
+    Q : (m,3,2) float array
+        R^T (R R^T)^-1, so that the Jacobian of a map with corner UVs U (2x3) is A = U Q.
+    area : (m,) float array
+        Triangle areas.
+    """
+    X = V[F]                                          # (m,3,3) corners
+    e12 = X[:, 1] - X[:, 0]
+    e13 = X[:, 2] - X[:, 0]
+    normal = np.cross(e12, e13)
+    dblarea = np.linalg.norm(normal, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e1 = e12 / np.linalg.norm(e12, axis=1)[:, None]
+        n = normal / dblarea[:, None]
+    e2 = np.cross(n, e1)
+    C = X - X.mean(axis=1, keepdims=True)
+    R = np.stack([np.einsum("mkd,md->mk", C, e1), np.einsum("mkd,md->mk", C, e2)], axis=1)
+    RRt = np.einsum("mik,mjk->mij", R, R)             # (m,2,2)
+    det = RRt[:, 0, 0] * RRt[:, 1, 1] - RRt[:, 0, 1] * RRt[:, 1, 0]
+    inv = np.empty_like(RRt)
+    inv[:, 0, 0] = RRt[:, 1, 1]
+    inv[:, 1, 1] = RRt[:, 0, 0]
+    inv[:, 0, 1] = -RRt[:, 0, 1]
+    inv[:, 1, 0] = -RRt[:, 1, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv /= det[:, None, None]
+    Q = np.einsum("mik,mij->mkj", R, inv)             # R^T (R R^T)^-1
+    return R, Q, 0.5 * dblarea
+
+
+def jacobians(Q, F, uv):
+    """Per-triangle Jacobians A (m,2,2) of the map with per-vertex UVs ``uv (n,2)``."""
+    U = uv[F]                                         # (m,3,2): corner k, coordinate c
+    return np.einsum("mkc,mkj->mcj", U, Q)
+
+
+class DistortionEnergy:
+    """The paper's F on one chart: value, gradient and sparse Hessian, with a fixed sparsity pattern.
+
+    Parameters
+    ----------
+    V : (n,3) float array
+        Chart vertices (every vertex referenced by F).
+    F : (m,3) int array
+    alpha : float in [0, 1]
+        Weight of the area term; 1 - alpha weighs the angle term.
+    weights : (m,) float array, optional
+        Per-triangle weights w_t (default 1, the paper's F).
+    fixed : (2n,) bool array, optional
+        Unknowns held fixed (e.g. pinned vertices). Gradients and Hessians are then returned for the
+        free unknowns only, in their order.
+    """
+
+    def __init__(self, V, F, *, alpha, weights=None, fixed=None):
+        alpha = float(alpha)
+        if not 0.0 <= alpha <= 1.0 or not np.isfinite(alpha):
+            raise InputError(f"alpha={alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) and 1 (areas only)")
+        self.V = np.asarray(V, dtype=np.float64)
+        self.F = np.asarray(F, dtype=np.int64)
+        self.alpha = alpha
+        self.n = len(self.V)
+        _, Q, self.area = triangle_frames(self.V, self.F)
+        self.a = np.ascontiguousarray(Q[:, :, 0])
+        self.b = np.ascontiguousarray(Q[:, :, 1])
+        m = len(self.F)
+        self.w = np.ones(m) if weights is None else np.asarray(weights, dtype=np.float64)
+        # global unknown of each per-triangle local unknown [u1 u2 u3 v1 v2 v3]
+        self.dof = np.concatenate([2 * self.F, 2 * self.F + 1], axis=1)      # (m,6)
+        N = 2 * self.n
+        self.fixed = np.zeros(N, bool) if fixed is None else np.asarray(fixed, bool)
+        self.free_index = np.full(N, -1, dtype=np.int64)
+        self.free_index[~self.fixed] = np.arange(int((~self.fixed).sum()))
+        self.n_free = int((~self.fixed).sum())
+        self._build_pattern()
+        # constant Hessian of the angle term: 2 (g1 g1^T + g2 g2^T), g1 = [a, -b], g2 = [b, a]
+        self._g1 = np.concatenate([self.a, -self.b], axis=1)                  # (m,6)
+        self._g2 = np.concatenate([self.b, self.a], axis=1)
+        self._H_angle = 2.0 * (np.einsum("mi,mj->mij", self._g1, self._g1)
+                               + np.einsum("mi,mj->mij", self._g2, self._g2))
+        # Hess(det): u-v block a_k b_l - b_k a_l and its transpose
+        Huv = np.einsum("mk,ml->mkl", self.a, self.b) - np.einsum("mk,ml->mkl", self.b, self.a)
+        self._H_det = np.zeros((m, 6, 6))
+        self._H_det[:, :3, 3:] = Huv
+        self._H_det[:, 3:, :3] = np.transpose(Huv, (0, 2, 1))
+
+    # -- sparsity pattern, built once ------------------------------------------------------------
+    def _build_pattern(self):
+        fi = self.free_index[self.dof]                                        # (m,6), -1 if fixed
+        rows = np.broadcast_to(fi[:, :, None], (len(fi), 6, 6)).ravel()
+        cols = np.broadcast_to(fi[:, None, :], (len(fi), 6, 6)).ravel()
+        keep = (rows >= 0) & (cols >= 0)
+        N = self.n_free
+        key = cols[keep] * N + rows[keep]                                      # CSC order: column major
+        uniq, inverse = np.unique(key, return_inverse=True)
+        self._hkeep = keep
+        self._hslot = inverse
+        self._nnz = len(uniq)
+        self._indices = (uniq % N).astype(np.int32)
+        ucol = uniq // N
+        self._indptr = np.searchsorted(ucol, np.arange(N + 1)).astype(np.int32)
+        self._diag = np.flatnonzero(self._indices == ucol)
+        gi = fi.ravel()
+        self._gkeep = gi >= 0
+        self._gslot = gi[self._gkeep]
+
+    def empty_matrix(self):
+        """A CSC matrix with the Hessian's pattern and zero values."""
+        return sp.csc_matrix((np.zeros(self._nnz), self._indices, self._indptr),
+                             shape=(self.n_free, self.n_free))
+
+    @property
+    def diagonal_slots(self):
+        """Positions of the diagonal entries in the CSC data array."""
+        return self._diag
+
+    # -- per-triangle quantities -----------------------------------------------------------------
+    def _terms(self, uv):
+        U = uv[self.F]                                                         # (m,3,2)
+        u, v = U[:, :, 0], U[:, :, 1]
+        A11 = np.einsum("mk,mk->m", self.a, u)
+        A12 = np.einsum("mk,mk->m", self.b, u)
+        A21 = np.einsum("mk,mk->m", self.a, v)
+        A22 = np.einsum("mk,mk->m", self.b, v)
+        return A11, A12, A21, A22
+
+    def per_triangle(self, uv):
+        """D_area and D_angle of every triangle, each (m,)."""
+        A11, A12, A21, A22 = self._terms(uv)
+        det = A11 * A22 - A12 * A21
+        return (det - 1.0) ** 2, (A11 - A22) ** 2 + (A12 + A21) ** 2
+
+    def value(self, uv):
+        """F at per-vertex UVs ``uv (n,2)``."""
+        d_area, d_angle = self.per_triangle(uv)
+        return float(np.dot(self.w, self.alpha * d_area + (1.0 - self.alpha) * d_angle))
+
+    def change(self, uv, duv):
+        """F(uv + duv) - F(uv), computed term by term so it stays accurate when tiny.
+
+        Subtracting two values of F near convergence loses everything below F's rounding error
+        (about 1e-16 F), which is larger than the decrease of a step once the gradient is small.
+        Expanding each term exactly avoids the cancellation:
+        (d1 - 1)^2 - (d0 - 1)^2 = (d1 - d0)(d1 + d0 - 2), r1^2 - r0^2 = dr (2 r0 + dr),
+        with d1 - d0 = A11 dA22 + dA11 A22 + dA11 dA22 - (A12 dA21 + dA12 A21 + dA12 dA21).
+        """
+        A11, A12, A21, A22 = self._terms(uv)
+        B11, B12, B21, B22 = self._terms(duv)
+        d0 = A11 * A22 - A12 * A21
+        dd = A11 * B22 + B11 * A22 + B11 * B22 - (A12 * B21 + B12 * A21 + B12 * B21)
+        r1, r2 = A11 - A22, A12 + A21
+        s1, s2 = B11 - B22, B12 + B21
+        per = (self.alpha * dd * (2.0 * d0 + dd - 2.0)
+               + (1.0 - self.alpha) * (s1 * (2.0 * r1 + s1) + s2 * (2.0 * r2 + s2)))
+        return float(np.dot(self.w, per))
+
+    def determinants(self, uv):
+        """det A of every triangle (m,); <= 0 means flipped or collapsed."""
+        A11, A12, A21, A22 = self._terms(uv)
+        return A11 * A22 - A12 * A21
+
+    def _local(self, uv, hessian):
+        A11, A12, A21, A22 = self._terms(uv)
+        det = A11 * A22 - A12 * A21
+        r1 = A11 - A22
+        r2 = A12 + A21
+        al, w = self.alpha, self.w
+        gdet = np.concatenate([self.a * A22[:, None] - self.b * A21[:, None],
+                               self.b * A11[:, None] - self.a * A12[:, None]], axis=1)
+        ca = 2.0 * al * w * (det - 1.0)
+        cg = 2.0 * (1.0 - al) * w
+        g = ca[:, None] * gdet + cg[:, None] * (r1[:, None] * self._g1 + r2[:, None] * self._g2)
+        f = float(np.dot(w, al * (det - 1.0) ** 2 + (1.0 - al) * (r1 ** 2 + r2 ** 2)))
+        if not hessian:
+            return f, g, None
+        H = (2.0 * al * w)[:, None, None] * np.einsum("mi,mj->mij", gdet, gdet)
+        H += ca[:, None, None] * self._H_det
+        H += ((1.0 - al) * w)[:, None, None] * self._H_angle
+        return f, g, H
+
+    def value_and_gradient(self, uv):
+        """F and its gradient over the free unknowns (interleaved u, v per vertex)."""
+        f, g, _ = self._local(uv, hessian=False)
+        return f, self._scatter_gradient(g)
+
+    def gradient(self, uv):
+        return self.value_and_gradient(uv)[1]
+
+    def evaluate(self, uv, out=None):
+        """F, gradient and Hessian (CSC, fixed pattern; ``out`` is refilled in place if given)."""
+        f, g, H = self._local(uv, hessian=True)
+        data = np.bincount(self._hslot, weights=H.ravel()[self._hkeep], minlength=self._nnz)
+        if out is None:
+            out = self.empty_matrix()
+        out.data[:] = data
+        return f, self._scatter_gradient(g), out
+
+    def _scatter_gradient(self, g):
+        return np.bincount(self._gslot, weights=g.ravel()[self._gkeep], minlength=self.n_free)
+
+    # -- conversions between per-vertex UVs and the free-unknown vector --------------------------
+    def to_vector(self, uv):
+        return np.asarray(uv, dtype=np.float64).reshape(-1)[~self.fixed].copy()
+
+    def to_uv(self, x, uv_fixed):
+        """Per-vertex UVs from the free unknowns ``x``, taking fixed unknowns from ``uv_fixed``."""
+        full = np.asarray(uv_fixed, dtype=np.float64).reshape(-1).copy()
+        full[~self.fixed] = x
+        return full.reshape(-1, 2)
+
+
+def optimal_scale(energy, uv):
+    """The uniform scale s > 0 minimising F(s * uv), in closed form.
+
+    det A scales with s^2 and D_angle with s^2, so with w = s^2,
+    F(w) = alpha sum (w d_t - 1)^2 + (1 - alpha) w c, a quadratic in w whose minimiser is
+    w* = (alpha sum d_t - (1 - alpha) c / 2) / (alpha sum d_t^2). At alpha = 0 the minimiser is the
+    collapsed map, so the map is instead scaled to the surface's own total area.
+    """
+    A11, A12, A21, A22 = energy._terms(uv)
+    d = A11 * A22 - A12 * A21
+    c = float(np.dot(energy.w, (A11 - A22) ** 2 + (A12 + A21) ** 2))
+    al = energy.alpha
+    sum_d = float(np.dot(energy.w, d))
+    sum_d2 = float(np.dot(energy.w, d * d))
+    if al > 0 and sum_d2 > 0:
+        w = (al * sum_d - 0.5 * (1.0 - al) * c) / (al * sum_d2)
+        if w > 0:
+            return float(np.sqrt(w))
+    # fall back: match total unsigned UV area to the 3D area
+    uv_area = float(np.dot(energy.area, np.abs(d)))
+    return float(np.sqrt(energy.area.sum() / uv_area)) if uv_area > 0 else 1.0
