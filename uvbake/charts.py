@@ -1,0 +1,260 @@
+"""Charts: split a mesh by segment labels and connected components, and check each is a disk with holes.
+
+A chart is what one parameterization flattens: a connected, manifold, consistently oriented triangle
+mesh with at least one boundary loop and no handles (genus 0). Every check is vectorised over
+half-edges and corners; errors name the chart, the offending elements and the way out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .errors import ChartError, InputError
+
+
+@dataclass
+class Chart:
+    """One chart of a mesh.
+
+    Attributes
+    ----------
+    V : (k,3) float array       the chart's vertices
+    F : (t,3) int array         its triangles, indexing V
+    vertex_map : (k,) int array index of each chart vertex in the whole mesh
+    face_index : (t,) int array index of each chart triangle in the whole mesh
+    label : int                 the segment label it came from (-1 when there were none)
+    name : str                  how errors and reports refer to it
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    vertex_map: np.ndarray
+    face_index: np.ndarray
+    label: int = -1
+    name: str = "chart 0"
+
+
+@dataclass
+class Topology:
+    n_vertices: int
+    n_edges: int
+    n_faces: int
+    n_components: int
+    n_boundary_loops: int
+    genus: int
+    boundary_edges: np.ndarray        # (b,2) int, oriented as in their triangle
+
+
+def _list(ids, limit=5):
+    ids = [int(i) for i in np.asarray(ids).ravel()[:limit + 1]]
+    s = ", ".join(str(i) for i in ids[:limit])
+    return s + (", ..." if len(ids) > limit else "")
+
+
+def check_arrays(V, F, *, where="mesh"):
+    """Validate array shapes, types, finiteness and index range; return (V float64, F int64)."""
+    try:
+        V = np.asarray(V, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: vertices are not numeric; pass V as an (n,3) float array") from None
+    F = np.asarray(F)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise InputError(f"{where}: vertices have shape {V.shape}, expected (n,3); pass 3D positions")
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise InputError(f"{where}: faces have shape {F.shape}, expected (m,3); triangulate the mesh first")
+    if len(F) == 0:
+        raise InputError(f"{where}: the mesh has no triangles; pass a surface mesh, not a point cloud")
+    if not np.issubdtype(F.dtype, np.integer):
+        if np.issubdtype(F.dtype, np.floating) and np.all(np.isfinite(F)) and np.all(F == np.round(F)):
+            F = F.astype(np.int64)
+        else:
+            raise InputError(f"{where}: face indices are not integers; pass F as an (m,3) int array")
+    F = F.astype(np.int64, copy=False)
+    if F.min() < 0 or F.max() >= len(V):
+        bad = np.flatnonzero((F < 0).any(1) | (F >= len(V)).any(1))
+        raise InputError(f"{where}: triangles {_list(bad)} index vertices outside 0..{len(V) - 1}; fix the face list")
+    bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
+    if len(bad):
+        raise InputError(f"{where}: {len(bad)} vertices have NaN or infinite coordinates (vertices {_list(bad)}); "
+                         "remove or repair them before unwrapping")
+    return V, F
+
+
+def topology(F, n_vertices=None):
+    """Edge counts, components, boundary loops and genus of a manifold triangle mesh."""
+    F = np.asarray(F, dtype=np.int64)
+    n = int(F.max()) + 1 if n_vertices is None else n_vertices
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.sort(he, axis=1)
+    uniq, inv, cnt = np.unique(key[:, 0] * n + key[:, 1], return_inverse=True, return_counts=True)
+    boundary = he[cnt[inv] == 1]
+    used = np.unique(F)
+    adj = sp.coo_matrix((np.ones(len(he)), (he[:, 0], he[:, 1])), shape=(n, n))
+    n_comp_all, lab = connected_components(adj, directed=False)
+    n_comp = len(np.unique(lab[used]))
+    if len(boundary):
+        bv = np.unique(boundary)
+        badj = sp.coo_matrix((np.ones(len(boundary)), (boundary[:, 0], boundary[:, 1])), shape=(n, n))
+        _, blab = connected_components(badj, directed=False)
+        n_loops = len(np.unique(blab[bv]))
+    else:
+        n_loops = 0
+    chi = len(used) - len(uniq) + len(F)
+    genus = (2 * n_comp - chi - n_loops) // 2
+    return Topology(len(used), len(uniq), len(F), n_comp, n_loops, int(genus), boundary)
+
+
+def check_chart(V, F, *, name="chart 0"):
+    """Raise a :class:`ChartError` unless (V, F) is one connected, manifold disk with holes.
+
+    Checks, in order: degenerate triangles (repeated indices or zero area), unreferenced vertices,
+    non-manifold edges, inconsistently oriented neighbours, non-manifold (bowtie) vertices, several
+    components, no boundary (closed), handles (genus > 0). Returns the chart's :class:`Topology`.
+    """
+    V, F = check_arrays(V, F, where=name)
+    n = len(V)
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    X = V[F]
+    e = np.linalg.norm(X[:, [1, 2, 0]] - X, axis=2)
+    dbl = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    scale = max(float(np.mean(e)), np.finfo(float).tiny)
+    # twice the area against the longest edge squared: zero for needles and caps alike
+    degenerate = rep | (dbl <= 1e-12 * np.maximum(e.max(axis=1), scale) ** 2)
+    if degenerate.any():
+        bad = np.flatnonzero(degenerate)
+        raise ChartError(f"{name}: {len(bad)} degenerate triangles (zero area or repeated vertex: triangles "
+                         f"{_list(bad)}); remove them (e.g. trimesh's update_faces(nondegenerate_faces()))")
+    unref = np.setdiff1d(np.arange(n), F.ravel())
+    if len(unref):
+        raise ChartError(f"{name}: {len(unref)} vertices are used by no triangle (vertices {_list(unref)}); "
+                         "remove them (e.g. trimesh's remove_unreferenced_vertices())")
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.sort(he, axis=1)
+    ek = key[:, 0] * n + key[:, 1]
+    uniq, inv, cnt = np.unique(ek, return_inverse=True, return_counts=True)
+    if (cnt > 2).any():
+        bad = uniq[cnt > 2]
+        pairs = ", ".join(f"({k // n},{k % n})" for k in bad[:5])
+        raise ChartError(f"{name}: {len(bad)} non-manifold edges shared by more than two triangles ({pairs}); "
+                         "split the chart there or repair the mesh")
+    # a manifold edge's two half-edges must run in opposite directions
+    dk = he[:, 0] * n + he[:, 1]
+    du, dcnt = np.unique(dk, return_counts=True)
+    if (dcnt > 1).any():
+        bad = du[dcnt > 1]
+        pairs = ", ".join(f"({k // n},{k % n})" for k in bad[:5])
+        raise ChartError(f"{name}: neighbouring triangles have opposite orientation across {len(bad)} edges "
+                         f"({pairs}); make the winding consistent (e.g. trimesh's fix_winding())")
+    bowtie = nonmanifold_vertices(F, n)
+    if len(bowtie):
+        raise ChartError(f"{name}: {len(bowtie)} non-manifold vertices where separate triangle fans meet "
+                         f"(vertices {_list(bowtie)}); duplicate those vertices per fan or split the chart")
+    topo = topology(F, n)
+    if topo.n_components != 1:
+        raise ChartError(f"{name}: has {topo.n_components} connected components; pass one component, "
+                         "or split it with uvbake.split_charts")
+    if topo.n_boundary_loops == 0:
+        raise ChartError(f"{name}: is closed (no boundary), so it cannot be flattened; cut it open along a seam "
+                         "or give it several segment labels")
+    if topo.genus != 0:
+        raise ChartError(f"{name}: has {topo.genus} handle(s) (genus {topo.genus}, {topo.n_boundary_loops} boundary "
+                         "loops), not a disk with holes; cut each handle or split the chart with segment labels")
+    return topo
+
+
+def nonmanifold_vertices(F, n):
+    """Vertices whose incident triangles form more than one edge-connected fan (bowties)."""
+    F = np.asarray(F, dtype=np.int64)
+    m = len(F)
+    corner = np.arange(3 * m).reshape(m, 3)       # corner (f, k) sits at vertex F[f, k]
+    # half-edge from corner k to corner k+1 of the same face
+    a = corner.ravel()
+    b = corner[:, [1, 2, 0]].ravel()
+    va, vb = F.ravel(), F[:, [1, 2, 0]].ravel()
+    key = np.minimum(va, vb) * n + np.maximum(va, vb)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    same = np.flatnonzero(ks[1:] == ks[:-1])
+    i, j = order[same], order[same + 1]
+    # faces i and j share edge {va, vb}: join their corners at the same vertex
+    ca_i, cb_i = a[i], b[i]
+    ca_j, cb_j = a[j], b[j]
+    vi = va[i]
+    # in face j the edge may run either way; match corners by vertex
+    match_a_j = np.where(va[j] == vi, ca_j, cb_j)
+    match_b_j = np.where(va[j] == vi, cb_j, ca_j)
+    rows = np.concatenate([ca_i, cb_i])
+    cols = np.concatenate([match_a_j, match_b_j])
+    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
+    _, lab = connected_components(g, directed=False)
+    vc = np.unique(np.stack([F.ravel(), lab], axis=1), axis=0)
+    counts = np.bincount(vc[:, 0], minlength=n)
+    return np.flatnonzero(counts > 1)
+
+
+def split_charts(V, F, labels=None, *, check=True):
+    """Split a mesh into charts: one per segment label and edge-connected component.
+
+    Parameters
+    ----------
+    V : (n,3) float array
+    F : (m,3) int array
+    labels : (m,) int array, optional
+        Per-face segment label; faces of one label that are not edge-connected become separate charts.
+    check : bool
+        Run :func:`check_chart` on every chart (raising on the first invalid one).
+
+    Returns
+    -------
+    list of :class:`Chart`, ordered by (label, first face).
+    """
+    V, F = check_arrays(V, F)
+    m = len(F)
+    if labels is None:
+        labels = np.zeros(m, dtype=np.int64)
+        named = False
+    else:
+        labels = np.asarray(labels)
+        if labels.shape != (m,) or not np.issubdtype(labels.dtype, np.integer):
+            raise InputError(f"segment labels have shape {labels.shape} and type {labels.dtype}; "
+                             f"pass one integer per triangle ({m})")
+        named = True
+    n = len(V)
+    # faces are adjacent when they share an edge and a label
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.sort(he, axis=1)
+    ek = key[:, 0] * n + key[:, 1]
+    face_of = np.repeat(np.arange(m), 3)
+    order = np.argsort(ek, kind="stable")
+    ks = ek[order]
+    same = np.flatnonzero(ks[1:] == ks[:-1])
+    fi, fj = face_of[order[same]], face_of[order[same + 1]]
+    keep = labels[fi] == labels[fj]
+    g = sp.coo_matrix((np.ones(int(keep.sum())), (fi[keep], fj[keep])), shape=(m, m))
+    _, comp = connected_components(g, directed=False)
+    # order charts by (label, first face)
+    first = np.full(comp.max() + 1, m)
+    np.minimum.at(first, comp, np.arange(m))
+    chart_label = labels[first]
+    chart_order = np.lexsort((first, chart_label))
+    rank = np.empty_like(chart_order)
+    rank[chart_order] = np.arange(len(chart_order))
+    comp = rank[comp]
+    faces_by_chart = np.argsort(comp, kind="stable")
+    bounds = np.searchsorted(comp[faces_by_chart], np.arange(comp.max() + 2))
+    charts = []
+    for c in range(len(bounds) - 1):           # one iteration per chart, not per triangle
+        fidx = faces_by_chart[bounds[c]:bounds[c + 1]]
+        Fc = F[fidx]
+        vmap, local = np.unique(Fc, return_inverse=True)
+        lab = int(labels[fidx[0]]) if named else -1
+        name = f"chart {c}" + (f" (label {lab})" if named else "")
+        chart = Chart(V[vmap], local.reshape(-1, 3).astype(np.int64), vmap, fidx, lab, name)
+        if check:
+            check_chart(chart.V, chart.F, name=name)
+        charts.append(chart)
+    return charts
