@@ -1,0 +1,144 @@
+"""Initial maps for the solver: ``lscm`` (default), ``tutte`` (one boundary loop) and ``random``.
+
+All three return per-vertex UVs in the chart's own length units; the solver rescales them by the
+closed-form optimal factor of :func:`uvbake.energy.optimal_scale` before iterating.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .charts import topology
+from .energy import DistortionEnergy
+from .errors import InputError
+
+INITS = ("lscm", "tutte", "random")
+
+
+def farthest_boundary_pair(V, F):
+    """Two boundary vertices far apart: the farthest from an arbitrary one, then the farthest from it."""
+    bnd = np.unique(topology(F, len(V)).boundary_edges)
+    p = bnd[np.argmax(np.linalg.norm(V[bnd] - V[bnd[0]], axis=1))]
+    q = bnd[np.argmax(np.linalg.norm(V[bnd] - V[p], axis=1))]
+    return int(p), int(q)
+
+
+def lscm(V, F, *, pins=None):
+    """Least squares conformal map (Levy et al. 2002) with two pinned boundary vertices.
+
+    Minimises sum_t area_t * D_angle_t, which is LSCM's conformal energy, with the two pins placed
+    at their 3D distance apart on the u axis. The energy is quadratic, so one sparse solve gives it.
+
+    Returns
+    -------
+    uv : (n,2) float array
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    p, q = farthest_boundary_pair(V, F) if pins is None else pins
+    uv0 = np.zeros((len(V), 2))
+    uv0[q, 0] = np.linalg.norm(V[q] - V[p])
+    fixed = np.zeros(2 * len(V), bool)
+    fixed[[2 * p, 2 * p + 1, 2 * q, 2 * q + 1]] = True
+    _, area = _areas(V, F)
+    E = DistortionEnergy(V, F, alpha=0.0, weights=area, fixed=fixed)
+    _, g, H = E.evaluate(uv0)
+    x = -_spd_solve(H, g)
+    return E.to_uv(x, uv0)
+
+
+def tutte(V, F):
+    """Tutte's barycentric embedding: boundary on a circle by arc length, interior at neighbour means.
+
+    Bijective for any chart with one boundary loop (Tutte 1963; Floater 1997). The circle's
+    circumference equals the boundary's 3D length.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    n = len(V)
+    topo = topology(F, n)
+    if topo.n_boundary_loops != 1:
+        raise InputError(f"init='tutte' needs a chart with exactly one boundary loop, this one has "
+                         f"{topo.n_boundary_loops}; use init='lscm' for charts with holes")
+    be = topo.boundary_edges
+    nxt = np.full(n, -1)
+    nxt[be[:, 0]] = be[:, 1]
+    order = _cycle_order(nxt, be[0, 0])
+    seg = np.linalg.norm(V[nxt[order]] - V[order], axis=1)
+    t = np.concatenate([[0.0], np.cumsum(seg)[:-1]]) / seg.sum() * 2 * np.pi
+    radius = seg.sum() / (2 * np.pi)
+    uv = np.zeros((n, 2))
+    uv[order] = radius * np.stack([np.cos(t), np.sin(t)], axis=1)
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n)).tocsr()
+    A = ((A + A.T) > 0).astype(np.float64)
+    L = sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A
+    inner = np.setdiff1d(np.arange(n), order)
+    if len(inner):
+        Lii = L[inner][:, inner].tocsc()
+        rhs = -(L[inner][:, order] @ uv[order])
+        uv[inner] = _spd_solve(Lii, rhs)
+    return uv
+
+
+def random_map(V, F, *, seed=0):
+    """Uniform random UVs in a square of the chart's own area: an invalid, mostly flipped start."""
+    V = np.asarray(V, dtype=np.float64)
+    _, area = _areas(V, np.asarray(F, dtype=np.int64))
+    side = np.sqrt(area.sum())
+    return np.random.default_rng(seed).uniform(0.0, side, size=(len(V), 2))
+
+
+def initial_map(V, F, init, *, seed=0):
+    """The start map named by ``init`` (one of ``INITS``)."""
+    if init == "lscm":
+        return lscm(V, F)
+    if init == "tutte":
+        return tutte(V, F)
+    if init == "random":
+        return random_map(V, F, seed=seed)
+    raise InputError(f"init={init!r} is not one of {', '.join(repr(i) for i in INITS)}")
+
+
+def _areas(V, F):
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    return n, 0.5 * np.linalg.norm(n, axis=1)
+
+
+def _cycle_order(nxt, start):
+    """Vertices of the cycle through ``start`` in successor order, by pointer doubling (no per-vertex loop)."""
+    members = np.flatnonzero(nxt >= 0)
+    # rank each member by its distance from start along the cycle: break the cycle before start
+    pred_start = members[nxt[members] == start]
+    succ = nxt.copy()
+    succ[pred_start] = pred_start               # the end points to itself
+    dist = np.where(np.arange(len(nxt)) == pred_start[0], 0, 1)
+    dist[nxt < 0] = 0
+    jump = np.where(nxt >= 0, succ, np.arange(len(nxt)))
+    for _ in range(int(np.ceil(np.log2(max(len(members), 2)))) + 1):
+        dist = dist + dist[jump]
+        jump = jump[jump]
+    # dist = number of steps to the end; the cycle through start has its own members only
+    on_cycle = members[_reach(nxt, start, members)]
+    return on_cycle[np.argsort(-dist[on_cycle], kind="stable")]
+
+
+def _reach(nxt, start, members):
+    """Mask over ``members`` of those on the cycle through ``start`` (connected components)."""
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(nxt)
+    g = sp.coo_matrix((np.ones(len(members)), (members, nxt[members])), shape=(n, n))
+    _, lab = connected_components(g, directed=False)
+    return lab[members] == lab[start]
+
+
+def _spd_solve(A, b):
+    from .solvers.linalg import make_solver
+
+    A = sp.csc_matrix(A)
+    s = make_solver(A)
+    s.factor(A, 0.0)
+    return s.solve(b)

@@ -1,0 +1,157 @@
+"""Levenberg-Marquardt on the distortion energy (the paper's Eq. 9) with the full Hessian.
+
+Each iteration factors H + lambda I once (a rejected step counts as an iteration, as does a
+factorisation that finds the damped matrix indefinite) and solves for the step
+delta = -(H + lambda I)^-1 grad F. The damping follows the gain ratio
+rho = (F(x) - F(x + delta)) / (predicted decrease of the quadratic model), with Nielsen's update
+(H. B. Nielsen, "Damping parameter in Marquardt's method", IMM-REP-1999-05): on success
+lambda *= max(1/10, 1 - (2 rho - 1)^3), on failure lambda *= nu, nu *= 2. Two additions, measured
+below: a memory of where H + lambda I was last indefinite, and backtracking along a rejected step.
+The actual decrease is computed term by term (DistortionEnergy.change), so the gain ratio stays
+meaningful when the decrease is below F's rounding error. The matrix pattern never changes, so its
+symbolic factorisation is computed once.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .linalg import NotPositiveDefinite, make_solver
+
+
+# Damping constants, chosen by measurement (bench/solver.py; iterations from LSCM starts on
+# camelhead alpha 0.1 / 0.5 and beetle alpha 0.1 / 0.5, and from a random start on camelhead 0.5):
+#   Nielsen as published (shrink >= 1/3, no memory, no backtracking)   11 / 32 / 47 / 45 / 109
+#   + damping memory and shrink >= 1/10                                 7 / 32 / 44 / 53 / 108
+#   + backtracking (this setting)                                        7 / 32 / 31 / 47 / 101
+# MIN_SHRINK: an accepted step lowers lambda at most tenfold (Marquardt's own factor).
+# Damping memory: after an accepted step lambda is not lowered below INDEF_MARGIN times the largest
+# lambda at which H + lambda I was recently found indefinite; the memory decays by INDEF_DECAY per
+# accepted step, so lambda can still go to zero near a minimum. Longer memory (decay 0.8 or 0.9)
+# over-damps: 51-111 iterations on the same cases.
+# BACKTRACK: a rejected step along a paid-for direction is halved up to this many times (Armijo)
+# before the factorisation is counted as wasted.
+MIN_SHRINK = 0.1
+INDEF_MARGIN = 1.5
+INDEF_DECAY = 0.5
+INDEF_JUMP = 4.0
+BACKTRACK = 4
+TAU = 1e-6
+
+
+def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0=None,
+                        linear_solver="auto", callback=None):
+    """Minimise ``energy`` (a :class:`uvbake.energy.DistortionEnergy`) from the free unknowns ``x0``.
+
+    Parameters
+    ----------
+    energy : DistortionEnergy
+    x0 : (k,) float array
+        Free unknowns of the start map.
+    uv_fixed : (n,2) float array
+        Per-vertex UVs supplying the values of fixed unknowns.
+    tol : float
+        Stop when ||grad F|| < tol.
+    max_iter : int
+        Cap on iterations (factorisations).
+    lambda0 : float, optional
+        Initial damping; default TAU * max(diag H), small because the starts we use are close.
+    callback : callable, optional
+        Called after every iteration with a dict (iteration, energy, grad_norm, damping, accepted);
+        returning True stops the solve.
+
+    Returns
+    -------
+    x : (k,) float array, and a dict with energy, grad_norm, iterations, converged, history,
+    stop_reason, evaluations and the linear solver used.
+    """
+    t0 = time.perf_counter()
+    x = np.array(x0, dtype=np.float64)
+    H = energy.empty_matrix()
+    f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
+    n_eval = 1
+    solver = make_solver(H, method=linear_solver)
+    diag = energy.diagonal_slots
+    gnorm = float(np.linalg.norm(g))
+    hmax = float(np.max(np.abs(H.data[diag]))) if len(diag) else 1.0
+    lam = (TAU * hmax if lambda0 is None else float(lambda0)) or 1e-12
+    lam_min = 1e-15 * max(hmax, 1e-300)
+    nu = 2.0
+    lam_indef = 0.0
+    history = [f]
+    zero_uv = np.zeros_like(uv_fixed)
+    it = 0
+    stop = "max_iter"
+    if not np.isfinite(f):
+        stop = "non-finite start"
+    elif gnorm < tol:
+        stop = "converged"
+    while it < max_iter and stop == "max_iter":
+        it += 1
+        accepted = False
+        reason = "indefinite"
+        try:
+            solver.factor(H, lam)
+            delta = -solver.solve(g)
+        except NotPositiveDefinite:
+            delta = None
+        if delta is not None and np.all(np.isfinite(delta)):
+            Hd = H @ delta
+            pred = -(g @ delta + 0.5 * delta @ Hd)
+            x_new = x + delta
+            # the step actually taken (x_new - x is exact in floating point), fixed unknowns at 0
+            duv = energy.to_uv(x_new - x, zero_uv)
+            actual = -energy.change(energy.to_uv(x, uv_fixed), duv)
+            n_eval += 1
+            rho = actual / pred if pred > 0 else -1.0
+            reason = f"gain {rho:.3g}"
+            if not (rho > 0 and actual > 0):
+                # the factorisation is paid for and delta is a descent direction (H + lambda I is
+                # positive definite): try shorter steps along it, Armijo's rule, before giving up
+                slope = float(g @ delta)
+                t = 1.0
+                for _ in range(BACKTRACK):
+                    t *= 0.5
+                    x_try = x + t * delta
+                    d_try = -energy.change(energy.to_uv(x, uv_fixed), energy.to_uv(x_try - x, zero_uv))
+                    n_eval += 1
+                    if d_try > -1e-4 * t * slope and d_try > 0:
+                        x_new, actual, rho = x_try, d_try, 0.0
+                        delta = x_try - x
+                        reason = f"backtracked to {t:g}"
+                        break
+            if actual > 0 and (rho > 0 or reason.startswith("backtracked")):
+                accepted = True
+                x = x_new
+                f_prev = f
+                f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
+                gnorm = float(np.linalg.norm(g))
+                lam = max(lam * max(MIN_SHRINK, 1.0 - (2.0 * rho - 1.0) ** 3), lam_min,
+                          INDEF_MARGIN * lam_indef)
+                lam_indef *= INDEF_DECAY
+                nu = 2.0
+                if np.linalg.norm(delta) <= 1e-15 * (1.0 + np.linalg.norm(x)):
+                    stop = "step too small"
+        if not accepted:
+            if reason == "indefinite":
+                # remember where H + lambda I stopped being positive definite, and jump well past it
+                lam_indef = max(lam_indef, lam)
+                lam *= INDEF_JUMP
+            else:
+                lam *= nu
+                nu *= 2.0
+            if lam > 1e30 * max(hmax, 1.0):
+                stop = "damping diverged"
+        history.append(f)
+        if gnorm < tol:
+            stop = "converged"
+        if callback is not None and callback(dict(iteration=it, energy=f, grad_norm=gnorm,
+                                                  damping=lam, accepted=accepted,
+                                                  reason=reason)):
+            stop = "stopped by callback" if stop == "max_iter" else stop
+            break
+    return x, dict(energy=f, grad_norm=gnorm, iterations=it, converged=gnorm < tol,
+                   history=np.asarray(history), stop_reason=stop, evaluations=n_eval,
+                   linear_solver=solver.name, solve_time_s=time.perf_counter() - t0)
