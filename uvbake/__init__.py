@@ -14,8 +14,8 @@ __version__ = "0.1.0"
 
 # Public names resolve lazily so `import uvbake` stays cheap (no scipy/open3d until used).
 _LAZY = {
-    "parameterize": ("uvbake.parameterize", "parameterize"),
-    "parameterize_charts": ("uvbake.parameterize", "parameterize_charts"),
+    "parameterize": ("uvbake.parameterization", "parameterize"),
+    "parameterize_charts": ("uvbake.parameterization", "parameterize_charts"),
     "ParamResult": ("uvbake.solvers.result", "ParamResult"),
     "load_mesh": ("uvbake.io", "load_mesh"),
     "split_charts": ("uvbake.charts", "split_charts"),

@@ -26,7 +26,8 @@ class ParamResult:
     n_flipped : int
         Triangles whose Jacobian determinant is <= 0 (flipped or collapsed).
     history : (k,) float array
-        F after each iteration, starting with the initial map's F.
+        F after each iteration at the target alpha, starting with the F of the map it started from
+        (after a continuation stage, whose own history is in ``extra["continuation"]``).
     time_s : float
         Wall time of init plus solve.
     """

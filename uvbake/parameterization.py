@@ -46,8 +46,22 @@ def _check_options(alpha, init, backend, tol, max_iter):
     return alpha
 
 
+CONTINUATION_ALPHA = 0.1
+
+
+def _solve(backend, energy, x0, uv_fixed, tol, max_iter, linear_solver, callback):
+    if backend == "lm":
+        from .solvers.lm import levenberg_marquardt
+
+        return levenberg_marquardt(energy, x0, uv_fixed=uv_fixed, tol=tol, max_iter=max_iter,
+                                   linear_solver=linear_solver, callback=callback)
+    from .solvers.lbfgs import lbfgs
+
+    return lbfgs(energy, x0, uv_fixed=uv_fixed, tol=tol, max_iter=max_iter, callback=callback)
+
+
 def parameterize(V, F, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1000, seed=0,
-                 uv0=None, callback=None, linear_solver="auto", name="chart 0"):
+                 uv0=None, callback=None, linear_solver="auto", continuation=True, name="chart 0"):
     """Flatten one chart (a connected disk with holes) by minimising the paper's F.
 
     Parameters
@@ -71,6 +85,10 @@ def parameterize(V, F, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_it
     callback : callable, optional
         Called after each iteration with a dict (iteration, energy, grad_norm, ...); return True to stop.
     linear_solver : {"auto", "cholmod", "superlu"}
+    continuation : bool
+        When the start has flipped triangles (always so for ``init="random"``) and alpha > 0.1,
+        solve at alpha = 0.1 first and continue from there (reported in ``extra["continuation"]``;
+        iterations of both stages are counted). False runs the paper's plain LM from the start.
 
     Returns
     -------
@@ -89,10 +107,12 @@ def parameterize(V, F, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_it
     # in parallel threads instead.
     with threadpool_limits(limits=1, user_api="blas"):
         return _parameterize(V, F, alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter,
-                             seed=seed, uv0=uv0, callback=callback, linear_solver=linear_solver, name=name)
+                             seed=seed, uv0=uv0, callback=callback, linear_solver=linear_solver,
+                             continuation=continuation, name=name)
 
 
-def _parameterize(V, F, *, alpha, init, backend, tol, max_iter, seed, uv0, callback, linear_solver, name):
+def _parameterize(V, F, *, alpha, init, backend, tol, max_iter, seed, uv0, callback, linear_solver,
+                  continuation, name):
     t0 = time.perf_counter()
     alpha = _check_options(alpha, init, backend, tol, max_iter)
     check_chart(V, F, name=name)
@@ -123,18 +143,28 @@ def _parameterize(V, F, *, alpha, init, backend, tol, max_iter, seed, uv0, callb
     start = start * optimal_scale(energy, start)
     if alpha == 0.0 and np.linalg.norm(start[p] - start[q]) == 0:
         start[q] += [np.linalg.norm(Vn[q] - Vn[p]), 0.0]
-    f_init = energy.value(start)
-    x0 = energy.to_vector(start)
+    f_init = energy.value(start)          # at the target alpha, before any continuation
 
-    if backend == "lm":
-        from .solvers.lm import levenberg_marquardt
-
-        x, info = levenberg_marquardt(energy, x0, uv_fixed=start, tol=tol, max_iter=max_iter,
-                                      linear_solver=linear_solver, callback=callback)
-    else:
-        from .solvers.lbfgs import lbfgs
-
-        x, info = lbfgs(energy, x0, uv_fixed=start, tol=tol, max_iter=max_iter, callback=callback)
+    stages = []
+    if continuation and alpha > CONTINUATION_ALPHA and np.any(energy.determinants(start) <= 0):
+        # An invalid start (flipped triangles, e.g. init="random") first goes to the nearly convex
+        # angle-dominated energy, then on to alpha: measured on developable patches from random
+        # starts at alpha 0.5 / 0.9, direct solves stall in wound local minima (F per triangle up to
+        # 0.1) while the continuation reaches the isometry (F per triangle < 1e-20).
+        e_c = DistortionEnergy(Vn, F, alpha=CONTINUATION_ALPHA)
+        x_c, info_c = _solve(backend, e_c, e_c.to_vector(start), start, tol, max_iter, linear_solver, callback)
+        start = e_c.to_uv(x_c, start)
+        start = start * optimal_scale(energy, start)
+        stages.append(info_c)
+    x, info = _solve(backend, energy, energy.to_vector(start), start, tol,
+                     max(max_iter - sum(st["iterations"] for st in stages), 0), linear_solver, callback)
+    if stages:
+        info = dict(info)
+        info["iterations"] += stages[0]["iterations"]
+        info["evaluations"] = info.get("evaluations", 0) + stages[0].get("evaluations", 0)
+        info["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stages[0]["iterations"],
+                                    energy=float(stages[0]["energy"]),
+                                    history=[float(h) for h in stages[0]["history"]])
     uvn = energy.to_uv(x, start)
     grad_norm = info["grad_norm"]
     if alpha == 0.0:
@@ -159,7 +189,7 @@ def _parameterize(V, F, *, alpha, init, backend, tol, max_iter, seed, uv0, callb
         energy_init=float(f_init),
         stop_reason=info["stop_reason"],
         n_evaluations=int(info.get("evaluations", 0)),
-        extra={k: info[k] for k in ("linear_solver",) if k in info},
+        extra={k: info[k] for k in ("linear_solver", "continuation") if k in info},
     )
 
 

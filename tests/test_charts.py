@@ -1,0 +1,127 @@
+"""Charts: splitting by labels and components, and every topology check naming its problem."""
+
+import numpy as np
+import pytest
+
+import uvbake
+from uvbake.charts import check_chart, nonmanifold_vertices, split_charts, topology
+from meshgen import bumpy_disk, grid
+
+
+def torus(nu=12, nv=8, R=2.0, r=0.7):
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    a, b = idx, np.roll(idx, -1, 0)
+    c, d = np.roll(b, -1, 1), np.roll(a, -1, 1)
+    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, nu, endpoint=False),
+                       np.linspace(0, 2 * np.pi, nv, endpoint=False), indexing="ij")
+    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1)
+    return V.reshape(-1, 3), F
+
+
+def octahedron():
+    V = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    return V, F
+
+
+def test_disk_and_disk_with_holes_pass():
+    V, F = bumpy_disk(8)
+    topo = check_chart(V, F)
+    assert (topo.n_boundary_loops, topo.genus, topo.n_components) == (1, 0, 1)
+    keep = ~np.isin(F, [19, 44]).any(axis=1)
+    c = split_charts(V, F[keep])[0]
+    topo = check_chart(c.V, c.F)
+    assert (topo.n_boundary_loops, topo.genus) == (3, 0)
+
+
+def test_closed_chart_is_named_with_a_fix():
+    V, F = octahedron()
+    with pytest.raises(uvbake.ChartError, match=r"chart 0: is closed .*cut it open"):
+        check_chart(V, F)
+
+
+def test_handle_is_detected():
+    V, F = torus()
+    F = F[1:]                                     # one hole: a torus with a boundary, genus 1
+    with pytest.raises(uvbake.ChartError, match=r"1 handle\(s\)"):
+        check_chart(V, F)
+    assert topology(F).genus == 1
+
+
+def test_nonmanifold_edge():
+    V, F = bumpy_disk(5)
+    inner = F[10]                                 # a fin: a third triangle on an interior edge
+    V2 = np.vstack([V, [[0, 0, 5.0]]])
+    F2 = np.vstack([F, [[inner[0], inner[1], len(V)]]])
+    with pytest.raises(uvbake.ChartError, match=rf"1 non-manifold edges .*\({min(inner[:2])},{max(inner[:2])}\)"):
+        check_chart(V2, F2)
+
+
+def test_bowtie_vertex_is_named():
+    st, F = grid(3, 3)
+    V = np.column_stack([st, np.zeros(len(st))])
+    # two squares touching only at vertex 4 (the centre): keep the lower-left and upper-right cells
+    tri = np.concatenate([F[[0, 4]], F[[3, 7]]])  # lower-left cell and upper-right cell
+    np.testing.assert_array_equal(nonmanifold_vertices(tri, len(V)), [4])
+    # charts are edge-connected, so splitting separates the two fans into two valid charts
+    charts = split_charts(V, tri)
+    assert len(charts) == 2 and all(4 in c.vertex_map for c in charts)
+    with pytest.raises(uvbake.ChartError, match=r"non-manifold vertices .*vertices 3\b"):   # 4 compacted to 3
+        check_chart(V[np.unique(tri)], np.searchsorted(np.unique(tri), tri))
+
+
+def test_degenerate_nan_unreferenced_and_orientation():
+    V, F = bumpy_disk(6)
+    Vd = V.copy()
+    Vd[F[5, 2]] = 0.5 * (Vd[F[5, 0]] + Vd[F[5, 1]])   # collinear corners: zero area
+    with pytest.raises(uvbake.ChartError, match="degenerate triangles"):
+        check_chart(Vd, F)
+    with pytest.raises(uvbake.ChartError, match="degenerate"):
+        check_chart(V, np.vstack([F, [[0, 0, 1]]]))
+    Vn = V.copy()
+    Vn[3, 1] = np.nan
+    with pytest.raises(uvbake.InputError, match=r"NaN .*vertices 3"):
+        check_chart(Vn, F)
+    with pytest.raises(uvbake.ChartError, match="used by no triangle"):
+        check_chart(np.vstack([V, [[9, 9, 9]]]), F)
+    Fo = F.copy()
+    Fo[7] = Fo[7, ::-1]
+    with pytest.raises(uvbake.ChartError, match="opposite orientation"):
+        check_chart(V, Fo)
+    with pytest.raises(uvbake.InputError, match="outside"):
+        check_chart(V, np.vstack([F, [[0, 1, len(V)]]]))
+    with pytest.raises(uvbake.InputError, match=r"shape \(36, 2\)"):
+        check_chart(V[:, :2], F)
+
+
+def test_split_by_labels_and_components():
+    V, F = bumpy_disk(9)
+    centre_x = V[F].mean(axis=1)[:, 0]
+    labels = np.where(centre_x < 0, 3, 7)
+    charts = split_charts(V, F, labels)
+    assert [c.label for c in charts] == [3, 7]
+    assert sum(len(c.F) for c in charts) == len(F)
+    # seam vertices are duplicated into both charts, and maps point back into V
+    assert sum(len(c.V) for c in charts) > len(V)
+    for c in charts:
+        np.testing.assert_array_equal(c.V, V[c.vertex_map])
+        np.testing.assert_array_equal(c.vertex_map[c.F], F[c.face_index])
+    # one label in two separate pieces makes two charts
+    labels2 = np.where(np.abs(centre_x) < 0.3, 1, 2)
+    parts = split_charts(V, F, labels2)
+    assert [c.label for c in parts] == [1, 2, 2]
+    # components without labels
+    V2 = np.vstack([V, V + [5, 0, 0]])
+    F2 = np.vstack([F, F + len(V)])
+    assert len(split_charts(V2, F2)) == 2
+    with pytest.raises(uvbake.InputError, match="one integer per triangle"):
+        split_charts(V, F, labels[:-1])
+
+
+def test_parameterize_refuses_several_components():
+    V, F = bumpy_disk(6)
+    V2 = np.vstack([V, V + [5, 0, 0]])
+    F2 = np.vstack([F, F + len(V)])
+    with pytest.raises(uvbake.ChartError, match="2 connected components"):
+        uvbake.parameterize(V2, F2)

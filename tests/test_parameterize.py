@@ -1,0 +1,154 @@
+"""The LM parameterizer: developable patches flatten exactly, curved ones converge, options are checked."""
+
+import numpy as np
+import pytest
+
+import uvbake
+from uvbake import parameterize, parameterize_charts
+from uvbake.energy import DistortionEnergy, jacobians, triangle_frames
+from uvbake.init import lscm, random_map, tutte
+from conftest import shared_mesh
+from meshgen import bumpy_disk, cone, cut_cylinder, plane
+
+DEVELOPABLE = {"plane": plane, "cut_cylinder": cut_cylinder, "cone": cone}
+
+
+def singular_values(V, F, uv):
+    _, Q, _ = triangle_frames(V, F)
+    return np.linalg.svd(jacobians(Q, F, uv), compute_uv=False)
+
+
+@pytest.mark.parametrize("init", ["lscm", "random"])
+@pytest.mark.parametrize("alpha", [0.1, 0.5, 0.9])
+@pytest.mark.parametrize("surface", sorted(DEVELOPABLE))
+def test_developable_patches_flatten_isometrically(surface, alpha, init):
+    V, F = DEVELOPABLE[surface]()
+    r = parameterize(V, F, alpha=alpha, init=init, seed=3)
+    assert r.converged and r.grad_norm < 1e-8
+    assert r.energy / len(F) < 1e-10
+    np.testing.assert_allclose(singular_values(V, F, r.uv), 1.0, atol=1e-6)
+    assert r.n_flipped == 0
+    # UVs are in the surface's own units: edge lengths are preserved
+    e3 = np.linalg.norm(V[F[:, 1]] - V[F[:, 0]], axis=1)
+    e2 = np.linalg.norm(r.uv[F[:, 1]] - r.uv[F[:, 0]], axis=1)
+    np.testing.assert_allclose(e2, e3, rtol=1e-6)
+
+
+def test_history_never_increases_on_accepted_steps():
+    V, F = bumpy_disk(16)
+    seen = []
+    r = parameterize(V, F, alpha=0.7, init="lscm", callback=lambda d: seen.append(d))
+    assert r.converged
+    assert len(r.history) == r.iterations + 1
+    assert np.all(np.diff(r.history) <= 0)
+    accepted = [d for d in seen if d["accepted"]]
+    assert accepted and all(b["energy"] <= a["energy"] for a, b in zip(accepted, accepted[1:]))
+    assert r.energy == pytest.approx(DistortionEnergy(V, F, alpha=0.7).value(r.uv), rel=1e-12)
+    assert r.energy < r.energy_init
+
+
+def test_random_start_without_continuation_runs_the_papers_plain_lm():
+    V, F = bumpy_disk(12)
+    plain = parameterize(V, F, alpha=0.5, init="random", seed=1, continuation=False)
+    cont = parameterize(V, F, alpha=0.5, init="random", seed=1)
+    assert "continuation" not in plain.extra and cont.extra["continuation"]["alpha"] == 0.1
+    assert np.all(np.diff(plain.history) <= 0) and np.all(np.diff(cont.history) <= 0)
+    assert cont.energy <= plain.energy * (1 + 1e-9)
+
+
+def test_curved_chart_reaches_the_same_minimum_from_every_start():
+    V, F = bumpy_disk(14)
+    energies = [parameterize(V, F, alpha=0.5, init=i, seed=s).energy
+                for i, s in [("lscm", 0), ("tutte", 0), ("random", 0), ("random", 1)]]
+    assert max(energies) - min(energies) < 1e-9 * max(energies)
+    assert min(energies) > 1e-3          # not developable: distortion is unavoidable
+
+
+def test_alpha_zero_is_the_conformal_map_at_the_surfaces_own_scale():
+    V, F = bumpy_disk(14)
+    r = parameterize(V, F, alpha=0.0)
+    area3d = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1).sum()
+    e = r.uv[F[:, 1:]] - r.uv[F[:, :1]]
+    area_uv = 0.5 * (e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0]).sum()
+    assert area_uv == pytest.approx(area3d, rel=1e-12)
+    assert r.converged
+    # not collapsed, and a minimum of the angle term up to scale: scaling it changes F only by s^2
+    assert np.ptp(r.uv, axis=0).min() > 0.1 * np.ptp(V, axis=0).max()
+    E = DistortionEnergy(V, F, alpha=0.0)
+    assert E.value(1.1 * r.uv) == pytest.approx(1.21 * r.energy, rel=1e-9)
+    # from a random start it lands on the same map up to a rigid motion: same energy
+    r2 = parameterize(V, F, alpha=0.0, init="random", seed=5)
+    assert r2.energy == pytest.approx(r.energy, rel=1e-6)
+
+
+def test_initial_maps():
+    V, F = bumpy_disk(10)
+    for uv in (lscm(V, F), tutte(V, F)):
+        _, Q, _ = triangle_frames(V, F)
+        assert np.all(np.linalg.det(jacobians(Q, F, uv)) > 0)         # valid starts on this disk
+    a, b = random_map(V, F, seed=1), random_map(V, F, seed=1)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, random_map(V, F, seed=2))
+    # Tutte puts the boundary on a circle whose circumference is the boundary's length
+    from uvbake.charts import topology
+
+    bnd = np.unique(topology(F).boundary_edges)
+    rad = np.linalg.norm(tutte(V, F)[bnd], axis=1)
+    np.testing.assert_allclose(rad, rad[0], rtol=1e-12)
+
+
+def test_tutte_refuses_charts_with_holes():
+    V, F = bumpy_disk(8)
+    keep = ~(F == 27).any(axis=1)                # remove an interior vertex's star: a hole
+    chart = uvbake.split_charts(V, F[keep])[0]   # drops the now unused vertex
+    with pytest.raises(uvbake.InputError, match="one boundary loop"):
+        parameterize(chart.V, chart.F, init="tutte")
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(alpha=1.5), "alpha"), (dict(alpha=-0.01), "alpha"), (dict(alpha="x"), "alpha"),
+    (dict(init="harmonic"), "init"), (dict(backend="newton"), "backend"),
+    (dict(tol=0), "tol"), (dict(max_iter=-1), "max_iter"), (dict(linear_solver="magic"), "linear_solver"),
+])
+def test_bad_options_name_the_option(kwargs, match):
+    V, F = plane()
+    with pytest.raises(uvbake.InputError, match=match):
+        parameterize(V, F, **kwargs)
+
+
+def test_superlu_fallback_gives_the_same_answer():
+    V, F = bumpy_disk(12)
+    a = parameterize(V, F, alpha=0.5, linear_solver="superlu")
+    b = parameterize(V, F, alpha=0.5, linear_solver="auto")
+    assert a.converged and b.converged
+    assert a.energy == pytest.approx(b.energy, rel=1e-9)
+    assert a.extra["linear_solver"] == "superlu"
+
+
+def test_iteration_cap_and_callback_stop():
+    V, F = bumpy_disk(12)
+    r = parameterize(V, F, alpha=0.9, init="random", max_iter=3, continuation=False)
+    assert r.iterations == 3 and not r.converged and r.stop_reason == "max_iter"
+    r = parameterize(V, F, alpha=0.9, callback=lambda d: d["iteration"] >= 2)
+    assert r.iterations == 2 and r.stop_reason == "stopped by callback"
+
+
+def test_charts_in_parallel_match_serial():
+    charts = [bumpy_disk(10, seed=s) for s in range(3)]
+    progress = []
+    par = parameterize_charts(charts, alpha=0.5, workers=2, progress=lambda d, t, r: progress.append(d))
+    ser = parameterize_charts(charts, alpha=0.5, workers=1)
+    assert sorted(progress) == [1, 2, 3]
+    for a, b in zip(par, ser):
+        np.testing.assert_allclose(a.uv, b.uv, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.meshes
+def test_halftunnel_converges_from_lscm_and_random():
+    from uvbake.io import load_mesh
+
+    m = load_mesh(shared_mesh("halftunnel.off"))
+    for init in ("lscm", "random"):
+        r = parameterize(m.V, m.F, alpha=0.5, init=init)
+        assert r.converged, r.stop_reason
+        assert r.iterations <= 400
