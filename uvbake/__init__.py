@@ -19,7 +19,7 @@ _LAZY = {
     "ParamResult": ("uvbake.solvers.result", "ParamResult"),
     "load_mesh": ("uvbake.io", "load_mesh"),
     "split_charts": ("uvbake.charts", "split_charts"),
-    "validate": ("uvbake.validate", "validate"),
+    "validate": ("uvbake.validation", "validate"),
 }
 
 

@@ -1,0 +1,141 @@
+"""``uvbake check``: validate the UVs of any textured mesh file (ours, xatlas's, Blender's).
+
+    uvbake check mesh.obj [--image overlaps.png] [--json report.json] [--resolution 2048]
+
+Exit status 0 when the UVs are bijective, 1 when they are not, 2 on bad input (missing or unreadable
+file, no texture coordinates, bad option). The verdict is one line on stdout; errors are one line on
+stderr. Output files are written atomically. Face numbers in the JSON report count the triangles of
+the file in order, geometries of a scene one after the other.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["main", "load_uv_mesh"]
+
+EXIT_VALID, EXIT_INVALID, EXIT_BAD_INPUT = 0, 1, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse exits with 2 already; keep it to one line
+        raise InputError(f"{message}; see `uvbake check --help`")
+
+
+def _parser():
+    p = _Parser(
+        prog="uvbake check",
+        description="Check that the UVs of a textured mesh are bijective (no flips, no overlaps).",
+    )
+    p.add_argument(
+        "path",
+        help="mesh with texture coordinates: .obj (vt), .glb/.gltf (TEXCOORD_0), .ply (s,t or u,v)",
+    )
+    p.add_argument("--image", metavar="PNG", help="write the overlap image here")
+    p.add_argument("--json", metavar="JSON", help="write the full report here")
+    p.add_argument(
+        "--resolution", metavar="N", type=int, default=2048, help="raster side in pixels (default 2048)"
+    )
+    p.add_argument(
+        "--allow-subpixel",
+        action="store_true",
+        help="overlaps that claim no common pixel at --resolution do not fail the check",
+    )
+    return p
+
+
+def load_uv_mesh(path):
+    """Load the UVs of a textured mesh, welded for validation.
+
+    Vertices are welded when both their 3D position and their UV are bit-identical, inside each
+    geometry: files split vertices at UV seams (and often at normal creases), so this recovers the
+    UV mesh's connectivity without joining charts that merely touch in UV space.
+
+    Parameters
+    ----------
+    path : str or path
+
+    Returns
+    -------
+    uv : (n,2) float64
+    F : (m,3) int64
+    """
+    import trimesh
+
+    from .validation import _row_ids
+
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(f"no such file: {path}; pass the path of a .obj, .glb, .gltf or .ply mesh")
+    try:
+        loaded = trimesh.load(path, process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(
+            f"cannot read {path}: {msg}; pass a valid .obj, .glb, .gltf or .ply mesh"
+        ) from None
+    geoms = list(loaded.geometry.values()) if isinstance(loaded, trimesh.Scene) else [loaded]
+    uvs, faces, offset, n_tri = [], [], 0, 0
+    for g in geoms:
+        F = np.asarray(getattr(g, "faces", np.zeros((0, 3))), dtype=np.int64)
+        if F.ndim != 2 or len(F) == 0:
+            continue
+        n_tri += len(F)
+        uv = getattr(getattr(g, "visual", None), "uv", None)
+        if uv is None or len(uv) != len(g.vertices):
+            continue
+        uv = np.asarray(uv, dtype=np.float64)[:, :2]
+        V = np.asarray(g.vertices, dtype=np.float64)
+        keys = (np.column_stack([V, uv]) + 0.0).view(np.int64)  # +0.0 folds -0.0 into 0.0
+        ids = _row_ids(keys)
+        welded = np.empty((int(ids.max()) + 1 if len(ids) else 0, 2))
+        welded[ids] = uv
+        uvs.append(welded)
+        faces.append(ids[F] + offset)
+        offset += len(welded)
+    if not faces:
+        what = "no triangles" if n_tri == 0 else "no texture coordinates"
+        raise InputError(f"{path} has {what}; unwrap it first (e.g. `uvbake {path}`)")
+    return np.concatenate(uvs), np.concatenate(faces)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``uvbake check``; return the exit status (0 valid, 1 invalid, 2 bad input)."""
+    from .validation import atomic_write_bytes, validate
+
+    try:
+        args = _parser().parse_args(argv)
+        uv, F = load_uv_mesh(args.path)
+        for out in (args.image, args.json):
+            if out and not os.path.isdir(os.path.dirname(os.path.abspath(out))):
+                raise InputError(f"folder of {out} does not exist; create it or choose another path")
+        # per-corner UVs make it an atlas (raster on [0,1]^2 when the UVs lie there); F keeps the welding
+        report = validate(
+            uv[F], F, resolution_px=args.resolution, allow_subpixel=args.allow_subpixel
+        )
+        if args.image:
+            report.save_image(args.image)
+        if args.json:
+            doc = {"path": os.fspath(args.path), **report.to_dict()}
+            atomic_write_bytes(args.json, (json.dumps(doc, indent=1) + "\n").encode())
+    except SystemExit as exc:  # --help
+        return int(exc.code or 0)
+    except InputError as exc:
+        print(f"uvbake check: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as exc:
+        print(f"uvbake check: error: {exc.strerror or exc}: {exc.filename or ''}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(f"{args.path}: {report.summary()}")
+    return EXIT_VALID if report.valid else EXIT_INVALID
+
+
+if __name__ == "__main__":
+    sys.exit(main())
