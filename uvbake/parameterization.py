@@ -168,10 +168,15 @@ def _parameterize(V, F, *, alpha, init, backend, tol, max_iter, seed, uv0, callb
     uvn = energy.to_uv(x, start)
     grad_norm = info["grad_norm"]
     if alpha == 0.0:
-        # the pinned conformal map, scaled to the surface's own area (F is quadratic: grad scales with s)
-        s = optimal_scale(DistortionEnergy(Vn, F, alpha=0.0), uvn)
-        uvn = uvn * s
-        grad_norm *= s
+        # the pinned conformal map, scaled to the surface's own area. The pinned problem is linear,
+        # so with the pins moved by the same scale its solution is the scaled map: a re-solve from
+        # there only polishes the gradient, which the scaling multiplied by s.
+        uvn = uvn * optimal_scale(energy, uvn)
+        x, polish = _solve(backend, energy, energy.to_vector(uvn), uvn, tol, max_iter, linear_solver, None)
+        uvn = energy.to_uv(x, uvn)
+        grad_norm = polish["grad_norm"]
+        info["iterations"] += polish["iterations"]
+        info["history"] = np.concatenate([info["history"], polish["history"][1:]])
     det = energy.determinants(uvn)
     uv = uvn * unit
     return ParamResult(

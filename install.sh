@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Install uvbake and everything it needs on a fresh Debian machine (run as root, or with sudo).
+#   system: Open3D's runtime (libusb-1.0-0, libgl1, libegl1, libgomp1), headless rendering (libvulkan1,
+#           mesa-vulkan-drivers), SuiteSparse for CHOLMOD and an optimised BLAS for it (reference BLAS
+#           makes CHOLMOD's supernodal factorisation 2-4x slower), a compiler for scikit-sparse.
+#   python: uvbake with its cholmod and test extras, editable from this checkout.
+set -euo pipefail
+cd "$(dirname "$0")"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends \
+    libusb-1.0-0 libgl1 libegl1 libgomp1 libvulkan1 mesa-vulkan-drivers \
+    libsuitesparse-dev libopenblas0-pthread build-essential >/dev/null
+python3 -m pip install -q --upgrade pip
+python3 -m pip install -q -e ".[cholmod,test]"
+python3 -c "import uvbake, open3d, nlopt, sksparse.cholmod; print('uvbake', uvbake.__version__, 'installed; open3d', open3d.__version__)"

@@ -1,0 +1,100 @@
+"""The uvbake command: the main job end to end, and one-line errors with non-zero exits."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from uvbake.cli import main
+from uvbake.io import load_obj_uv
+from conftest import SAMPLE_SCENES
+
+
+@pytest.fixture
+def scene(tmp_path):
+    dst = tmp_path / "scene.ply"
+    shutil.copy(SAMPLE_SCENES / "scene.ply", dst)
+    return dst
+
+
+def test_unwrap_scene_writes_uvs_and_report(scene, tmp_path, capsys):
+    out, rep = tmp_path / "out.obj", tmp_path / "report.json"
+    before = scene.read_bytes()
+    assert main([str(scene), "--alpha", "0.5", "-o", str(out), "--json", str(rep)]) == 0
+    assert scene.read_bytes() == before
+    report = json.loads(rep.read_text())
+    assert len(report["charts"]) == 5 and report["all_converged"]
+    assert all(c["grad_norm"] < 1e-8 and c["alpha"] == 0.5 for c in report["charts"])
+    mesh, uv, uv_faces = load_obj_uv(out)
+    assert mesh.F.shape == (report["triangles"], 3)
+    # per-corner UVs preserve the charts' shapes: UV edge lengths match the report's energy being small
+    import uvbake
+
+    charts = uvbake.split_charts(mesh.V, mesh.F, uvbake.load_mesh(scene).face_labels)
+    from uvbake.energy import DistortionEnergy
+
+    total = 0.0
+    for c in charts:
+        corner_uv = uv[uv_faces[c.face_index]]                # (t,3,2)
+        per_vertex = np.zeros((len(c.V), 2))
+        per_vertex[c.F.ravel()] = corner_uv.reshape(-1, 2)
+        total += DistortionEnergy(c.V, c.F, alpha=0.5).value(per_vertex)
+    assert total == pytest.approx(report["energy_total"], rel=1e-9)
+    # seams are split in UV: more UV vertices than mesh vertices
+    assert len(uv) > len(mesh.V)
+    assert "5 chart(s)" in capsys.readouterr().out
+
+
+def test_default_output_sits_beside_the_input(scene):
+    assert main([str(scene), "-q"]) == 0
+    assert (scene.parent / "scene_uv.obj").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["missing.ply"], "not found"),
+    (["{scene}", "--alpha", "1.5"], "alpha"),
+    (["{scene}", "--max-iter", "-3"], "max_iter"),
+    (["{scene}", "-o", "{scene}"], "is the input mesh"),
+    (["{scene}", "-o", "{tmp}/nowhere/out.obj"], "does not exist"),
+    (["{empty}"], "empty"),
+    (["{text}"], "{text_name}"),
+    (["{nan}"], "NaN"),
+])
+def test_bad_input_is_one_line_and_exit_2(args, message, scene, tmp_path, capsys):
+    empty = tmp_path / "empty.ply"
+    empty.write_bytes(b"")
+    text = tmp_path / "notes.ply"
+    text.write_text("this is not a mesh\n")
+    nan = tmp_path / "nan.obj"
+    nan.write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
+    fill = dict(scene=scene, tmp=tmp_path, empty=empty, text=text, nan=nan, text_name=text.name)
+    args = [a.format(**fill) for a in args]
+    before = {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    code = main(args)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert message.format(**fill) in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    after = {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert after == before                       # nothing written, nothing overwritten
+
+
+def test_console_script_exits_nonzero_without_traceback(tmp_path):
+    closed = tmp_path / "octa.obj"
+    closed.write_text("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+                      "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n")
+    proc = subprocess.run([sys.executable, "-m", "uvbake.cli", str(closed)], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "closed" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "octa_uv.obj").exists()
+
+
+def test_help_reads_well():
+    proc = subprocess.run([sys.executable, "-m", "uvbake.cli", "--help"], capture_output=True, text=True)
+    assert proc.returncode == 0
+    for word in ("--alpha", "--init", "--backend", "--json", "segment"):
+        assert word in proc.stdout
