@@ -196,6 +196,27 @@ def nonmanifold_vertices(F, n):
     return np.flatnonzero(counts > 1)
 
 
+def face_adjacency(F, n_vertices=None):
+    """Pairs of faces sharing an edge, and that edge.
+
+    Returns
+    -------
+    fi, fj : (k,) int arrays
+        Faces on either side of each shared edge (a non-manifold edge yields one pair per
+        consecutive pair of its faces).
+    edges : (k,2) int array
+        The shared edge's vertices, sorted.
+    """
+    F = np.asarray(F, dtype=np.int64)
+    n = int(F.max()) + 1 if n_vertices is None else n_vertices
+    key = np.sort(F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    ek = key[:, 0] * n + key[:, 1]
+    order = np.argsort(ek, kind="stable")
+    same = np.flatnonzero(ek[order][1:] == ek[order][:-1])
+    i, j = order[same], order[same + 1]
+    return i // 3, j // 3, key[i]
+
+
 def split_charts(V, F, labels=None, *, check=True):
     """Split a mesh into charts: one per segment label and edge-connected component.
 
@@ -223,16 +244,8 @@ def split_charts(V, F, labels=None, *, check=True):
             raise InputError(f"segment labels have shape {labels.shape} and type {labels.dtype}; "
                              f"pass one integer per triangle ({m})")
         named = True
-    n = len(V)
     # faces are adjacent when they share an edge and a label
-    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.sort(he, axis=1)
-    ek = key[:, 0] * n + key[:, 1]
-    face_of = np.repeat(np.arange(m), 3)
-    order = np.argsort(ek, kind="stable")
-    ks = ek[order]
-    same = np.flatnonzero(ks[1:] == ks[:-1])
-    fi, fj = face_of[order[same]], face_of[order[same + 1]]
+    fi, fj, _ = face_adjacency(F, len(V))
     keep = labels[fi] == labels[fj]
     g = sp.coo_matrix((np.ones(int(keep.sum())), (fi[keep], fj[keep])), shape=(m, m))
     _, comp = connected_components(g, directed=False)
