@@ -1,0 +1,146 @@
+"""Segmentation: short, valid cuts for bisection, flip repair and closed / handled charts."""
+
+import time
+
+import numpy as np
+import pytest
+
+from conftest import shared_mesh
+from meshgen import bumpy_disk, grid
+from uvbake.charts import check_chart, split_charts, topology
+from uvbake.errors import ChartError, InputError
+from uvbake.io import load_mesh
+from uvbake.segment import bisect, cut_to_disks, seam_length, split_where
+
+
+def torus(nu=32, nv=16, R=2.0, r=0.6):
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    a, b = idx, np.roll(idx, -1, 0)
+    c, d = np.roll(b, -1, 1), np.roll(a, -1, 1)
+    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, nu, endpoint=False),
+                       np.linspace(0, 2 * np.pi, nv, endpoint=False), indexing="ij")
+    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1)
+    return V.reshape(-1, 3), F
+
+
+def sphere(subdiv=3):
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions=subdiv)
+    return np.asarray(s.vertices, float), np.asarray(s.faces, np.int64)
+
+
+def _parts_valid(V, F, labels, k=None):
+    """Every label is one valid chart (check_chart raises otherwise)."""
+    charts = split_charts(V, F, labels)            # also splits labels that are not edge-connected
+    assert len(charts) == len(np.unique(labels))
+    if k is not None:
+        assert len(charts) == k
+    return charts
+
+
+def test_bisect_bumpy_disk_gives_two_valid_balanced_parts():
+    V, F = bumpy_disk(20)
+    lab = bisect(V, F)
+    assert set(np.unique(lab)) == {0, 1}
+    charts = _parts_valid(V, F, lab, 2)
+    assert min(len(c.F) for c in charts) >= 0.1 * len(F)
+
+
+def test_bisect_cuts_a_long_strip_across_its_width():
+    st, F = grid(61, 7)
+    V = np.column_stack([6.0 * st[:, 0], 1.0 * st[:, 1], 0.1 * np.sin(4 * st[:, 0])])
+    lab = bisect(V, F)
+    _parts_valid(V, F, lab, 2)
+    L = seam_length(V, F, lab)
+    assert 1.0 <= L < 1.6, L                       # about the width (1), far below the length (6)
+    assert min(np.bincount(lab)) >= 0.1 * len(F)
+
+
+def test_bisect_is_deterministic_and_rejects_disconnected_input():
+    V, F = bumpy_disk(12)
+    assert np.array_equal(bisect(V, F), bisect(V, F))
+    F2 = np.vstack([F, F + len(V)])
+    V2 = np.vstack([V, V + 5])
+    with pytest.raises(InputError, match="edge-connected pieces"):
+        bisect(V2, F2)
+
+
+def test_cut_to_disks_sphere_two_disks():
+    V, F = sphere(3)
+    lab = cut_to_disks(V, F)
+    charts = _parts_valid(V, F, lab, 2)
+    for c in charts:
+        topo = topology(c.F)
+        assert topo.genus == 0 and topo.n_boundary_loops == 1
+    # a single closed loop around the sphere: under 1.5 x the great circle
+    assert seam_length(V, F, lab) < 1.5 * 2 * np.pi
+
+
+def test_cut_to_disks_torus_all_parts_disks_with_holes():
+    V, F = torus()
+    lab = cut_to_disks(V, F)
+    charts = _parts_valid(V, F, lab)
+    assert 2 <= len(charts) <= 4
+    for c in charts:
+        assert check_chart(c.V, c.F).genus == 0
+
+
+def test_cut_to_disks_leaves_disks_alone_and_handles_several_pieces():
+    V, F = bumpy_disk(10)
+    assert np.array_equal(cut_to_disks(V, F), np.zeros(len(F)))
+    Vs, Fs = sphere(2)
+    V2 = np.vstack([V, Vs + 5])
+    F2 = np.vstack([F, Fs + len(V)])
+    lab = cut_to_disks(V2, F2)
+    _parts_valid(V2, F2, lab, 3)
+    assert np.all(lab[: len(F)] == 0)
+
+
+def test_cut_to_disks_rejects_nonmanifold_input():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0]], float)
+    with pytest.raises(ChartError, match="non-manifold vertices.*repair"):
+        cut_to_disks(V, np.array([[0, 1, 2], [0, 3, 4]]))
+
+
+@pytest.mark.parametrize("name", ["cow.off", "fandisk.off", "bumpy.off"])
+def test_cut_to_disks_research_meshes(name):
+    m = load_mesh(shared_mesh(name))
+    t = time.perf_counter()
+    lab = cut_to_disks(m.V, m.F)
+    dt = time.perf_counter() - t
+    charts = _parts_valid(m.V, m.F, lab)
+    assert len(charts) == 2                          # closed genus 0: one cut, two charts
+    assert dt < 10
+
+
+def test_split_where_separates_a_bad_patch():
+    V, F = bumpy_disk(24)
+    c = V[F].mean(axis=1)
+    bad = np.flatnonzero(np.linalg.norm(c[:, :2] - [0.6, 0.6], axis=1) < 0.2)
+    lab = split_where(V, F, bad)
+    charts = _parts_valid(V, F, lab, 2)
+    assert np.mean(lab[bad] == 1) >= 0.9            # the bad faces go together to side 1 ...
+    assert np.sum(lab == 1) <= 0.55 * len(F)        # ... which is not most of the chart
+    assert min(len(c.F) for c in charts) >= 1
+    # a bool mask works too, and the cut is reasonably short (not longer than the chart's width x 2)
+    mask = np.zeros(len(F), bool)
+    mask[bad] = True
+    assert np.array_equal(split_where(V, F, mask), lab)
+    assert seam_length(V, F, lab) < 4.0
+
+
+def test_split_where_two_bad_clusters_and_fallbacks():
+    V, F = bumpy_disk(16)
+    c = V[F].mean(axis=1)
+    bad = np.flatnonzero((np.linalg.norm(c[:, :2] - [0.7, 0.7], axis=1) < 0.15)
+                         | (np.linalg.norm(c[:, :2] + [0.7, 0.7], axis=1) < 0.15))
+    lab = split_where(V, F, bad)
+    _parts_valid(V, F, lab, 2)
+    assert np.mean(lab[bad] == 1) >= 0.5
+    for b in ([], np.arange(len(F))):               # nothing bad / everything bad: plain bisection
+        lab = split_where(V, F, b)
+        _parts_valid(V, F, lab, 2)
+    with pytest.raises(InputError, match="outside"):
+        split_where(V, F, [len(F)])
