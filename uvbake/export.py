@@ -1,0 +1,383 @@
+"""Textured-mesh export: OBJ + MTL + PNG, or a self-contained GLB, with per-corner UVs and seams kept.
+
+    paths = save_textured("out.glb", V, F, corner_uv, image)     # or "out.obj" (writes out.mtl, out.png)
+    save_png("texture.png", image)
+    V2, F2, corner_uv2 = load_textured_uv("out.glb")
+
+UV convention: ``corner_uv`` is uvbake's internal convention, v up (origin bottom-left, as in OBJ), and
+``image`` is stored row 0 = top (as PNG). OBJ ``vt`` lines get ``(u, v)`` unchanged; glTF's texture
+origin is the top-left, so the GLB stores ``TEXCOORD_0 = (u, 1 - v)`` with the same image bytes.
+:func:`load_textured_uv` converts back, so it always returns v-up UVs.
+
+Seams: OBJ keeps ``v`` exactly as given and writes one ``vt`` per distinct corner UV, so a vertex on a
+seam is one ``v`` with several ``vt``. glTF has one UV per vertex, so the GLB splits vertices per
+distinct (vertex, UV) pair; corners of one vertex inside one chart stay shared.
+
+Atomicity: every file is first written under a temporary name in the target folder; only when all
+of them are complete are they renamed into place. A failure leaves no new files and every existing
+file untouched. (Renames are atomic one at a time; the set of renames is not.)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io as _io
+import json
+import os
+import struct
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .io import _default_mode, atomic_write, load_obj_uv, save_obj
+
+#: Extensions save_textured writes.
+TEXTURED_EXTENSIONS = (".obj", ".glb")
+
+_GL_FLOAT, _GL_UNSIGNED_INT = 5126, 5125
+_GL_ARRAY_BUFFER, _GL_ELEMENT_ARRAY_BUFFER = 34962, 34963
+_GL_LINEAR, _GL_LINEAR_MIPMAP_LINEAR, _GL_CLAMP_TO_EDGE = 9729, 9987, 33071
+
+
+def save_textured(path, V, F, corner_uv, image, *, vertex_colors=None, name="uvbake") -> list:
+    """Write a textured mesh: ``.obj`` (with ``.mtl`` and ``.png`` beside it) or ``.glb``.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file; its extension picks the format. The caller makes sure it is not the input.
+    V : (n,3) float array
+    F : (m,3) int array
+    corner_uv : (m,3,2) float array
+        Atlas UVs per corner, v up.
+    image : (H,W,3) or (H,W,4) uint8 array, or a PIL image
+        The texture, row 0 at the top.
+    vertex_colors : (n,3) float array in [0,1], optional
+        Written as ``v x y z r g b`` (OBJ) or ``COLOR_0`` (GLB).
+    name : str
+        Material and mesh name.
+
+    Returns
+    -------
+    list of Path
+        The files written (OBJ: the .obj, .mtl and .png; GLB: the .glb).
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in TEXTURED_EXTENSIONS:
+        raise InputError(f"{path}: unknown textured-mesh format {path.suffix!r}; use .obj or .glb")
+    if not path.parent.is_dir():
+        raise InputError(f"{path}: folder {path.parent} does not exist; create it first")
+    V, F, corner_uv, image, vertex_colors = _check(path, V, F, corner_uv, image, vertex_colors)
+    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name)) or "uvbake"
+    if ext == ".obj":
+        return _save_obj(path, V, F, corner_uv, image, vertex_colors, name)
+    return _save_glb(path, V, F, corner_uv, image, vertex_colors, name)
+
+
+def save_png(path, image) -> Path:
+    """Write a texture as PNG (lossless), atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        Must end in ``.png``; its folder must exist.
+    image : (H,W), (H,W,3) or (H,W,4) uint8 array, or a PIL image
+        Row 0 at the top (v = 1).
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise InputError(f"{path}: a texture is written as PNG; give a path ending in .png")
+    image = _check_image(path, image)
+    data = _png_bytes(image)
+    _write_bytes(path, data)
+    return path
+
+
+def load_textured_uv(path):
+    """Read back a textured mesh written by :func:`save_textured`.
+
+    Returns
+    -------
+    V : (k,3) float64 array
+        OBJ: the ``v`` lines as written. GLB: the split vertices.
+    F : (m,3) int64 array
+    corner_uv : (m,3,2) float64 array
+        Per-corner UVs, v up (the GLB's ``1 - v`` is undone).
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext == ".obj":
+        mesh, uv, uv_faces = load_obj_uv(path)
+        if uv_faces is None:
+            raise InputError(f"{path}: has no texture coordinates on every face; export it again")
+        return mesh.V, mesh.F, uv[uv_faces]
+    if ext == ".glb":
+        return _load_glb(path)
+    raise InputError(f"{path}: unknown textured-mesh format {path.suffix!r}; use .obj or .glb")
+
+
+# --------------------------------------------------------------------------------------------------
+# checks and helpers
+
+
+def _check(path, V, F, corner_uv, image, vertex_colors):
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F)
+    corner_uv = np.asarray(corner_uv, dtype=np.float64)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise InputError(f"{path}: V must be (n,3), got shape {V.shape}; pass vertex positions")
+    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or not np.issubdtype(F.dtype, np.integer) \
+            or F.min() < 0 or F.max() >= len(V):
+        raise InputError(f"{path}: F must be (m,3), m > 0, with indices in 0..{len(V) - 1}; "
+                         "pass triangles indexing V")
+    F = F.astype(np.int64)
+    if corner_uv.shape != (len(F), 3, 2) or not np.all(np.isfinite(corner_uv)):
+        raise InputError(f"{path}: corner_uv must be finite (m,3,2)=({len(F)},3,2), got "
+                         f"{corner_uv.shape}; pass the atlas UVs per face corner")
+    if not np.all(np.isfinite(V)):
+        raise InputError(f"{path}: V holds NaN or infinite coordinates; repair the mesh first")
+    image = _check_image(path, image)
+    if vertex_colors is not None:
+        vertex_colors = np.asarray(vertex_colors)
+        if vertex_colors.dtype == np.uint8:
+            vertex_colors = vertex_colors / 255.0
+        vertex_colors = vertex_colors.astype(np.float64)
+        if vertex_colors.ndim != 2 or vertex_colors.shape[0] != len(V) \
+                or vertex_colors.shape[1] not in (3, 4):
+            raise InputError(f"{path}: vertex_colors must be (n,3)={V.shape}, got "
+                             f"{vertex_colors.shape}; pass one RGB colour per vertex")
+        vertex_colors = np.clip(vertex_colors[:, :3], 0.0, 1.0)
+    return V, F, corner_uv, image, vertex_colors
+
+
+def _check_image(path, image) -> np.ndarray:
+    if hasattr(image, "convert") and hasattr(image, "mode"):  # a PIL image
+        image = np.asarray(image.convert("RGBA" if image.mode in ("RGBA", "LA", "PA") else "RGB"))
+    image = np.asarray(image)
+    if image.ndim == 2:
+        image = np.repeat(image[..., None], 3, axis=2)
+    if image.ndim != 3 or image.shape[2] not in (3, 4) or image.dtype != np.uint8 \
+            or min(image.shape[:2]) < 1:
+        raise InputError(f"{path}: image must be (H,W,3) or (H,W,4) uint8, got {image.shape} "
+                         f"{image.dtype}; pass a baked texture")
+    return np.ascontiguousarray(image)
+
+
+def _png_bytes(image: np.ndarray) -> bytes:
+    """Lossless PNG encoding of an (H,W,3|4) uint8 image."""
+    from PIL import Image
+
+    buf = _io.BytesIO()
+    Image.fromarray(image).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+@contextlib.contextmanager
+def _staged(finals):
+    """Yield temporary paths beside each final path; rename all into place only if the block succeeds."""
+    temps = []
+    try:
+        for final in finals:
+            fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
+            os.close(fd)
+            os.unlink(tmp)  # writers create it themselves (atomically)
+            temps.append(Path(tmp))
+        yield temps
+        for tmp, final in zip(temps, finals):
+            os.chmod(tmp, _default_mode(final))
+        for tmp, final in zip(temps, finals):
+            os.replace(tmp, final)
+    finally:
+        for tmp in temps:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    with atomic_write(path, "wb") as f:
+        f.write(data)
+
+
+# --------------------------------------------------------------------------------------------------
+# OBJ + MTL + PNG
+
+
+def _save_obj(path, V, F, corner_uv, image, vertex_colors, name):
+    mtl_path, png_path = path.with_suffix(".mtl"), path.with_suffix(".png")
+    uv, uv_faces = np.unique(corner_uv.reshape(-1, 2), axis=0, return_inverse=True)
+    uv_faces = uv_faces.reshape(-1, 3)
+    mtl = (f"# written by uvbake\nnewmtl {name}\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1\n"
+           f"map_Kd {png_path.name}\n")
+    finals = [png_path, mtl_path, path]
+    with _staged(finals) as (png_tmp, mtl_tmp, obj_tmp):
+        _write_bytes(png_tmp, _png_bytes(image))
+        _write_bytes(mtl_tmp, mtl.encode("utf-8"))
+        save_obj(obj_tmp, V, F, uv=uv, uv_faces=uv_faces, vertex_colors=vertex_colors,
+                 mtllib=mtl_path.name, material=name)
+    return [path, mtl_path, png_path]
+
+
+# --------------------------------------------------------------------------------------------------
+# GLB
+
+
+def split_corners(F, corner_uv):
+    """Split vertices per distinct (vertex, UV) pair, as glTF needs one UV per vertex.
+
+    Returns
+    -------
+    source : (k,) int64 array
+        The original vertex of each new vertex.
+    uv : (k,2) float64 array
+        Its UV.
+    F_new : (m,3) int64 array
+        Triangles over the new vertices.
+    """
+    m = len(F)
+    keys = np.empty((3 * m, 3), dtype=np.float64)
+    keys[:, 0] = F.reshape(-1)
+    keys[:, 1:] = corner_uv.reshape(-1, 2)
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    order = np.argsort(first)  # new vertices in order of first use
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    corners = first[order]
+    return F.reshape(-1)[corners], corner_uv.reshape(-1, 2)[corners], rank[inverse].reshape(m, 3)
+
+
+def _vertex_normals(V, F):
+    """Area-weighted unit vertex normals; (0,0,1) where undefined."""
+    P = V[F]
+    fn = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    vn = np.zeros_like(V)
+    for k in range(3):
+        np.add.at(vn, F[:, k], fn)
+    norm = np.linalg.norm(vn, axis=1)
+    ok = norm > 0
+    vn[ok] /= norm[ok, None]
+    vn[~ok] = (0.0, 0.0, 1.0)
+    vn = vn.astype(np.float32)
+    return vn / np.linalg.norm(vn, axis=1, keepdims=True)
+
+
+def glb_bytes(V, F, corner_uv, image, *, vertex_colors=None, name="uvbake") -> bytes:
+    """The GLB file of a textured mesh (see :func:`save_textured`), as bytes."""
+    source, uv, F_new = split_corners(F, corner_uv)
+    pos = V[source].astype(np.float32)
+    attrs = {"POSITION": pos, "NORMAL": _vertex_normals(V, F)[source],
+             "TEXCOORD_0": np.column_stack([uv[:, 0], 1.0 - uv[:, 1]]).astype(np.float32)}
+    if vertex_colors is not None:
+        attrs["COLOR_0"] = vertex_colors[source].astype(np.float32)
+
+    blob = bytearray()
+    views, accessors = [], []
+
+    def add_view(data: bytes, target=None):
+        while len(blob) % 4:
+            blob.append(0)
+        view = {"buffer": 0, "byteOffset": len(blob), "byteLength": len(data)}
+        if target is not None:
+            view["target"] = target
+        blob.extend(data)
+        views.append(view)
+        return len(views) - 1
+
+    prim_attrs = {}
+    for key, arr in attrs.items():
+        acc = {"bufferView": add_view(arr.tobytes(), _GL_ARRAY_BUFFER), "componentType": _GL_FLOAT,
+               "count": len(arr), "type": f"VEC{arr.shape[1]}"}
+        if key == "POSITION":
+            acc["min"] = [float(x) for x in arr.min(axis=0)]
+            acc["max"] = [float(x) for x in arr.max(axis=0)]
+        accessors.append(acc)
+        prim_attrs[key] = len(accessors) - 1
+    idx = F_new.astype(np.uint32).reshape(-1)
+    accessors.append({"bufferView": add_view(idx.tobytes(), _GL_ELEMENT_ARRAY_BUFFER),
+                      "componentType": _GL_UNSIGNED_INT, "count": len(idx), "type": "SCALAR"})
+    image_view = add_view(_png_bytes(image))
+    while len(blob) % 4:
+        blob.append(0)
+
+    gltf = {
+        "asset": {"version": "2.0", "generator": "uvbake"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": name}],
+        "meshes": [{"name": name, "primitives": [{"attributes": prim_attrs,
+                                                  "indices": len(accessors) - 1,
+                                                  "material": 0, "mode": 4}]}],
+        "materials": [{"name": name, "doubleSided": True,
+                       "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
+                                                "metallicFactor": 0.0, "roughnessFactor": 1.0}}],
+        "textures": [{"sampler": 0, "source": 0}],
+        "samplers": [{"magFilter": _GL_LINEAR, "minFilter": _GL_LINEAR_MIPMAP_LINEAR,
+                      "wrapS": _GL_CLAMP_TO_EDGE, "wrapT": _GL_CLAMP_TO_EDGE}],
+        "images": [{"bufferView": image_view, "mimeType": "image/png"}],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": len(blob)}],
+    }
+    js = json.dumps(gltf, separators=(",", ":")).encode("utf-8")
+    js += b" " * (-len(js) % 4)
+    total = 12 + 8 + len(js) + 8 + len(blob)
+    return b"".join([struct.pack("<4sII", b"glTF", 2, total),
+                     struct.pack("<I4s", len(js), b"JSON"), js,
+                     struct.pack("<I4s", len(blob), b"BIN\x00"), bytes(blob)])
+
+
+def _save_glb(path, V, F, corner_uv, image, vertex_colors, name):
+    data = glb_bytes(V, F, corner_uv, image, vertex_colors=vertex_colors, name=name)
+    with _staged([path]) as (tmp,):
+        _write_bytes(tmp, data)
+    return [path]
+
+
+_COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
+              5126: np.float32}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+
+
+def _load_glb(path):
+    """V, F, corner_uv (v up) of the single primitive of a GLB written by uvbake."""
+    data = Path(path).read_bytes()
+    try:
+        magic, version, total = struct.unpack_from("<4sII", data, 0)
+        if magic != b"glTF" or version != 2:
+            raise ValueError("not a glTF 2.0 binary")
+        js_len, js_type = struct.unpack_from("<I4s", data, 12)
+        gltf = json.loads(data[20:20 + js_len])
+        bin_start = 20 + js_len + 8
+        bin_len, _ = struct.unpack_from("<I4s", data, 20 + js_len)
+        blob = data[bin_start:bin_start + bin_len]
+
+        def accessor(i):
+            acc = gltf["accessors"][i]
+            view = gltf["bufferViews"][acc["bufferView"]]
+            dtype = np.dtype(_COMPONENT[acc["componentType"]])
+            width = _WIDTH[acc["type"]]
+            start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+            stride = view.get("byteStride", dtype.itemsize * width)
+            rows = [np.frombuffer(blob, dtype, width, start + r * stride) for r in range(acc["count"])] \
+                if stride != dtype.itemsize * width else \
+                [np.frombuffer(blob, dtype, acc["count"] * width, start)]
+            return np.concatenate(rows).reshape(acc["count"], width)
+
+        meshes = gltf.get("meshes", [])
+        if len(meshes) != 1 or len(meshes[0]["primitives"]) != 1:
+            raise ValueError("expected one mesh with one primitive")
+        prim = meshes[0]["primitives"][0]
+        V = accessor(prim["attributes"]["POSITION"]).astype(np.float64)
+        F = accessor(prim["indices"]).reshape(-1, 3).astype(np.int64)
+        uv = accessor(prim["attributes"]["TEXCOORD_0"]).astype(np.float64)
+    except (ValueError, KeyError, IndexError, struct.error) as exc:
+        raise InputError(f"{path}: cannot read as a uvbake GLB ({exc}); export it again") from None
+    uv[:, 1] = 1.0 - uv[:, 1]
+    return V, F, uv[F]
