@@ -15,4 +15,8 @@ $SUDO apt-get install -y -qq --no-install-recommends \
     libsuitesparse-dev libopenblas0-pthread build-essential >/dev/null
 python3 -m pip install -q --upgrade pip
 python3 -m pip install -q -e ".[cholmod,test]"
+# the Khronos glTF validator, used by the tests to check exported GLB files
+if ! command -v npm >/dev/null; then $SUDO apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null; fi
+npm install --silent --no-audit --no-fund --prefix "${UVBAKE_NODE_PREFIX:-$HOME/.cache/uvbake/node}" \
+    gltf-validator@2.0.0-dev.3.10 >/dev/null
 python3 -c "import uvbake, open3d, nlopt, sksparse.cholmod; print('uvbake', uvbake.__version__, 'installed; open3d', open3d.__version__)"

@@ -21,31 +21,38 @@ def scene(tmp_path):
     return dst
 
 
-def test_unwrap_scene_writes_uvs_and_report(scene, tmp_path, capsys):
-    out, rep = tmp_path / "out.obj", tmp_path / "report.json"
+def test_unwrap_scene_writes_textured_mesh_and_report(scene, tmp_path, capsys):
+    out, rep, tex = tmp_path / "out.obj", tmp_path / "report.json", tmp_path / "checker.png"
     before = scene.read_bytes()
-    assert main([str(scene), "--alpha", "0.5", "-o", str(out), "--json", str(rep)]) == 0
+    assert main([str(scene), "--alpha", "0.5", "-o", str(out), "--json", str(rep), "--bake", str(tex),
+                 "--texture-size", "256"]) == 0
     assert scene.read_bytes() == before
     report = json.loads(rep.read_text())
-    assert len(report["charts"]) == 5 and report["all_converged"]
+    assert report["valid"] and report["all_converged"] and report["n_flipped_total"] == 0
+    assert len(report["charts"]) == 5 and report["charts_input"] == 5
     assert all(c["grad_norm"] < 1e-8 and c["alpha"] == 0.5 for c in report["charts"])
-    mesh, uv, uv_faces = load_obj_uv(out)
-    assert mesh.F.shape == (report["triangles"], 3)
-    # per-corner UVs preserve the charts' shapes: UV edge lengths match the report's energy being small
-    import uvbake
+    assert 0.3 < report["atlas"]["efficiency"] <= 1
+    from PIL import Image
 
-    charts = uvbake.split_charts(mesh.V, mesh.F, uvbake.load_mesh(scene).face_labels)
+    with Image.open(tex) as im:
+        assert im.size == (256, 256)
+    mesh, uv, uv_faces = load_obj_uv(out)
+    corner = uv[uv_faces]                                        # (m,3,2)
+    assert corner.min() >= 0 and corner.max() <= 1
+    # packing only rotates, translates and scales each chart by the common scale: undoing the scale
+    # must give back each chart's energy (F is invariant under rotation and translation)
+    import uvbake
     from uvbake.energy import DistortionEnergy
 
-    total = 0.0
+    charts = uvbake.split_charts(mesh.V, mesh.F, uvbake.load_mesh(scene).face_labels)
+    scale = report["atlas"]["scale"]
+    energies = []
     for c in charts:
-        corner_uv = uv[uv_faces[c.face_index]]                # (t,3,2)
         per_vertex = np.zeros((len(c.V), 2))
-        per_vertex[c.F.ravel()] = corner_uv.reshape(-1, 2)
-        total += DistortionEnergy(c.V, c.F, alpha=0.5).value(per_vertex)
-    assert total == pytest.approx(report["energy_total"], rel=1e-9)
-    # seams are split in UV: more UV vertices than mesh vertices
-    assert len(uv) > len(mesh.V)
+        per_vertex[c.F.ravel()] = corner[c.face_index].reshape(-1, 2) / scale
+        energies.append(DistortionEnergy(c.V, c.F, alpha=0.5).value(per_vertex))
+    assert sorted(energies) == pytest.approx(sorted(c["energy"] for c in report["charts"]), rel=1e-5)
+    assert len(uv) > len(mesh.V)                                 # seams split in UV
     assert "5 chart(s)" in capsys.readouterr().out
 
 
@@ -87,7 +94,8 @@ def test_console_script_exits_nonzero_without_traceback(tmp_path):
     closed = tmp_path / "octa.obj"
     closed.write_text("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
                       "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n")
-    proc = subprocess.run([sys.executable, "-m", "uvbake.cli", str(closed)], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-m", "uvbake.cli", str(closed), "--no-auto-cut"],
+                          capture_output=True, text=True)
     assert proc.returncode == 2
     assert "closed" in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp_path / "octa_uv.obj").exists()

@@ -1,6 +1,6 @@
 """The ``uvbake`` command.
 
-    uvbake MESH [--alpha A] [--init lscm|tutte|random] [--backend lm|lbfgs] [-o OUT.obj] [--json R.json]
+    uvbake MESH [--alpha A] [--bake checker.png] [-o OUT.obj|OUT.glb] [--json R.json] [...]
     uvbake check MESH [...]     validate the UVs of a textured mesh (see ``uvbake check --help``)
     uvbake sweep MESH [...]     alpha sensitivity study (see ``uvbake sweep --help``)
 
@@ -24,26 +24,48 @@ SUBCOMMANDS = {"check": "uvbake.check", "sweep": "uvbake.sweep_cli"}
 def _parser():
     p = argparse.ArgumentParser(
         prog="uvbake",
-        description="Flatten every chart of a mesh with the weighted area/angle distortion minimiser "
-                    "(Levenberg-Marquardt) and write the mesh with its UVs. Charts come from a per-face "
-                    "segment label (PLY face property 'segment', 'label', ...) and connected components.",
-        epilog="Other commands: 'uvbake check MESH' validates a textured mesh's UVs; "
+        description="Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle "
+                    "distortion minimiser (Levenberg-Marquardt), split charts until no triangle is flipped "
+                    "or overlapping, pack them, bake a texture and write the textured mesh and a report. "
+                    "Charts come from a per-face segment label (PLY face property 'segment', 'label', ...) "
+                    "and connected components.",
+        epilog="examples:\n"
+               "  uvbake scene.ply --alpha 0.5 --bake checker.png\n"
+               "  uvbake scan.ply -o scan.glb --bake colors.png --texture-size 2048 --json report.json\n"
+               "other commands: 'uvbake check MESH' validates a textured mesh's UVs; "
                "'uvbake sweep MESH --alphas 0:1:0.1' studies the alpha sensitivity.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("mesh", help="input mesh (PLY, OBJ, OFF, GLB/GLTF, STL)")
-    p.add_argument("-o", "--output", help="output OBJ with UVs (default: MESH_uv.obj next to the input)")
-    p.add_argument("--alpha", type=float, default=0.5,
+    p.add_argument("-o", "--output", help="textured mesh to write, .obj (with .mtl and .png) or .glb "
+                                          "(default: MESH_uv.obj next to the input)")
+    g = p.add_argument_group("flattening")
+    g.add_argument("--alpha", type=float, default=0.5,
                    help="weight of area preservation in [0, 1]; 1 - alpha weighs angles (default 0.5)")
-    p.add_argument("--init", default="lscm", choices=["lscm", "tutte", "random"], help="start map (default lscm)")
-    p.add_argument("--backend", default="lm", choices=["lm", "lbfgs"],
+    g.add_argument("--init", default="lscm", choices=["lscm", "tutte", "random"], help="start map (default lscm)")
+    g.add_argument("--backend", default="lm", choices=["lm", "lbfgs"],
                    help="lm: Levenberg-Marquardt, full Hessian (default); lbfgs: nlopt L-BFGS")
-    p.add_argument("--tol", type=float, default=1e-8, help="scale-free gradient norm to reach (default 1e-8)")
-    p.add_argument("--max-iter", type=int, default=1000, help="iteration cap per chart (default 1000)")
-    p.add_argument("--seed", type=int, default=0, help="seed of --init random (default 0)")
-    p.add_argument("--no-continuation", action="store_true",
-                   help="from an invalid start, run the paper's plain LM instead of going through alpha=0.1")
-    p.add_argument("--workers", type=int, default=None, help="charts solved in parallel (default: CPU count)")
-    p.add_argument("--json", metavar="REPORT", help="write a JSON report here")
+    g.add_argument("--cross-check", action="store_true",
+                   help="also solve every chart with the other backend and fail if they disagree")
+    g.add_argument("--tol", type=float, default=1e-8, help="scale-free gradient norm to reach (default 1e-8)")
+    g.add_argument("--max-iter", type=int, default=1000, help="iteration cap per chart (default 1000)")
+    g.add_argument("--seed", type=int, default=0, help="seed of --init random (default 0)")
+    g.add_argument("--workers", type=int, default=None, help="charts solved in parallel (default: CPU count)")
+    g = p.add_argument_group("guarantees")
+    g.add_argument("--no-auto-cut", action="store_true",
+                   help="refuse closed charts and charts with handles instead of cutting them into disks")
+    g.add_argument("--no-repair", action="store_true",
+                   help="refuse non-manifold input instead of repairing it (bowties, specks, duplicates)")
+    g.add_argument("--paper", action="store_true",
+                   help="the paper's formulation as is: no chart splitting (flips and overlaps are reported, "
+                        "not removed) and no continuation from invalid starts")
+    g = p.add_argument_group("atlas and texture")
+    g.add_argument("--texture-size", type=int, default=1024, metavar="PX", help="texture side in texels (default 1024)")
+    g.add_argument("--gutter", type=int, default=4, metavar="PX", help="gap between charts in texels (default 4)")
+    g.add_argument("--bake", metavar="PNG", help="bake a texture to this PNG: a checkerboard, or the vertex "
+                                                 "colours when the name contains 'color'/'colour'")
+    g.add_argument("--bake-mode", choices=["checker", "vertex-colors"], help="what --bake bakes (overrides the name)")
+    p.add_argument("--json", metavar="REPORT", help="write the JSON report here")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
     return p
 
@@ -95,86 +117,103 @@ def output_path(mesh, output, *, suffix="_uv", ext=".obj"):
 
 
 def _unwrap_command(args):
-    import numpy as np
-
-    from .charts import split_charts
     from .errors import InputError
-    from .io import atomic_write, load_mesh, save_obj
-    from .parameterization import _check_options, parameterize_charts
+    from .pipeline import _check_texture, unwrap
 
     t0 = time.perf_counter()
-    _check_options(args.alpha, args.init, args.backend, args.tol, args.max_iter)
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
+    _check_texture(args.texture_size, args.gutter)
     out = output_path(args.mesh, args.output)
-    if out.suffix.lower() != ".obj":
-        raise InputError(f"output {out} must end in .obj (textured GLB export comes with packing and baking)")
+    if out.suffix.lower() not in (".obj", ".glb"):
+        raise InputError(f"output {out} must end in .obj or .glb")
     report_path = output_path(args.mesh, args.json, suffix="_report", ext=".json") if args.json else None
-    mesh = load_mesh(args.mesh)
-    charts = split_charts(mesh.V, mesh.F, mesh.face_labels)
+    bake_path, mode = None, None
+    if args.bake or args.bake_mode:
+        bake_path = output_path(args.mesh, args.bake, suffix="_texture", ext=".png")
+        if bake_path.suffix.lower() != ".png":
+            raise InputError(f"--bake {bake_path} must end in .png")
+        name = bake_path.stem.lower()
+        mode = args.bake_mode or ("vertex-colors" if ("color" in name or "colour" in name) else "checker")
+    outputs = [out] + ([out.with_suffix(".mtl"), out.with_suffix(".png")] if out.suffix.lower() == ".obj" else [])
+    outputs += [p for p in (report_path, bake_path) if p is not None]
+    if len({p.resolve() for p in outputs}) < len(outputs):
+        raise InputError(f"two outputs share one path ({', '.join(str(p) for p in outputs)}); "
+                         "give -o, --json and --bake different names")
+    if Path(args.mesh).exists() and Path(args.mesh).resolve() in {p.resolve() for p in outputs}:
+        raise InputError(f"an output would replace the input {args.mesh}; choose other output names")
 
-    bar = _progress(len(charts), quiet=args.quiet)
+    bar = _progress(quiet=args.quiet)
+
+    def on_stage(stage, done, total):
+        if bar is not None:
+            bar.set_description_str(f"uvbake {stage}", refresh=False)
+            if stage == "solve":
+                bar.total = total
+                bar.n = done
+            bar.refresh()
 
     def on_iteration(info):
         if bar is not None:
-            bar.set_postfix_str(f"iter {info['iteration']}  |grad| {info['grad_norm']:.1e}", refresh=False)
+            bar.set_postfix_str(f"iter {info['iteration']} |grad| {info['grad_norm']:.1e}", refresh=False)
 
-    results = parameterize_charts(
-        charts, workers=args.workers, progress=(lambda done, total, res: bar.update(1)) if bar else None,
-        alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol, max_iter=args.max_iter,
-        seed=args.seed, continuation=not args.no_continuation, callback=on_iteration)
+    result = unwrap(args.mesh, alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol,
+                    max_iter=args.max_iter, seed=args.seed, texture_size_px=args.texture_size,
+                    gutter_px=args.gutter, bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
+                    guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
+                    progress=on_stage, callback=on_iteration)
+    if args.cross_check:
+        from .crosscheck import cross_check_charts
+
+        result.report["cross_check"] = cross_check_charts(result.charts, result.results, alpha=args.alpha,
+                                                          init=args.init, tol=args.tol, max_iter=args.max_iter,
+                                                          seed=args.seed)
     if bar is not None:
         bar.close()
+    written = result.save(out)
+    if bake_path is not None:
+        from .export import save_png
 
-    # per-corner UVs: each chart keeps its own UV vertices (seams split), charts side by side in u
-    uv_parts, uv_faces = [], np.empty_like(mesh.F)
-    offset_u, offset_i = 0.0, 0
-    for chart, res in zip(charts, results):
-        uv = res.uv - res.uv.min(axis=0)
-        gap = 0.05 * float(np.ptp(uv, axis=0).max())
-        uv_parts.append(uv + [offset_u, 0.0])
-        uv_faces[chart.face_index] = chart.F + offset_i
-        offset_u += float(uv[:, 0].max()) + gap
-        offset_i += len(uv)
-    save_obj(out, mesh.V, mesh.F, uv=np.vstack(uv_parts), uv_faces=uv_faces)
-
-    report = {
-        "input": str(args.mesh),
-        "output": str(out),
-        "vertices": int(len(mesh.V)),
-        "triangles": int(len(mesh.F)),
-        "options": {"alpha": args.alpha, "init": args.init, "backend": args.backend, "tol": args.tol,
-                    "max_iter": args.max_iter, "seed": args.seed, "continuation": not args.no_continuation},
-        "charts": [dict(name=c.name, label=c.label, triangles=int(len(c.F)), **r.to_dict())
-                   for c, r in zip(charts, results)],
-        "energy_total": float(sum(r.energy for r in results)),
-        "n_flipped_total": int(sum(r.n_flipped for r in results)),
-        "all_converged": bool(all(r.converged for r in results)),
-        "time_s": time.perf_counter() - t0,
-    }
+        save_png(bake_path, result.image)
+        written = list(written) + [bake_path]
+    result.report["outputs"] = [str(p) for p in written] + ([str(report_path)] if report_path else [])
+    result.report["timings"]["cli_total_s"] = time.perf_counter() - t0
     if report_path is not None:
+        from .io import atomic_write
+
         with atomic_write(report_path) as fh:
-            json.dump(report, fh, indent=1)
+            json.dump(result.report, fh, indent=1)
+    rep = result.report
     if not args.quiet:
-        conv = sum(r.converged for r in results)
-        print(f"uvbake: {len(charts)} chart(s), {len(mesh.F)} triangles, alpha {args.alpha}: "
-              f"F* {report['energy_total']:.6g}, {conv}/{len(charts)} converged, "
-              f"{report['n_flipped_total']} flipped, {report['time_s']:.2f} s -> {out}")
-        for c, r in zip(charts, results):
-            if not r.converged:
-                print(f"uvbake: warning: {c.name} stopped before convergence ({r.stop_reason}, "
-                      f"|grad| {r.grad_norm:.2e} after {r.iterations} iterations); raise --max-iter",
+        atlas = rep["atlas"]
+        print(f"uvbake: {rep['triangles']} triangles -> {rep['charts_final']} chart(s) "
+              f"({rep['charts_input']} before cuts and splits), alpha {args.alpha}; "
+              f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}%, "
+              f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written)}")
+        for w in (rep.get("repair") or {}).get("warnings", []):
+            print(f"uvbake: warning: {w}", file=sys.stderr)
+        for c in rep["charts"]:
+            if not c["converged"]:
+                print(f"uvbake: warning: {c['name']} stopped before convergence ({c['stop_reason']}, "
+                      f"|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations); raise --max-iter",
                       file=sys.stderr)
+    if args.cross_check and not rep["cross_check"]["agree"]:
+        print(f"uvbake: failed: the backends disagree: {rep['cross_check']['message']}", file=sys.stderr)
+        return 1
+    if not rep["valid"] and not args.paper:
+        print("uvbake: failed: the atlas still has flipped or overlapping triangles (see the report)",
+              file=sys.stderr)
+        return 1
     return 0
 
 
-def _progress(total, *, quiet):
+def _progress(*, quiet):
     if quiet:
         return None
     from tqdm import tqdm
 
     # disable=None: shown on a terminal, silent when stderr is a pipe or a CI log
-    return tqdm(total=total, unit="chart", desc="uvbake", disable=None, leave=False, file=sys.stderr)
+    return tqdm(total=1, unit="chart", desc="uvbake", disable=None, leave=False, file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,365 @@
+"""``unwrap``: the whole pipeline, from a mesh to a validated, packed and baked atlas, with one report.
+
+    load -> repair -> charts (auto-cut) -> parameterize -> validate / split -> pack -> validate -> bake
+
+Flip- and overlap-free guarantee (``guarantee=True``). The paper's energy is kept exactly; a chart
+whose solution has flipped or overlapping triangles is split in two with a short cut separating the
+bad region (``uvbake.segment.split_where``) and both parts are solved again, until every chart
+validates. Smaller charts of a smooth surface are closer to developable, so the split recursion
+ends; a single triangle always flattens exactly, which bounds it. Every split is reported.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .charts import Chart, check_chart, face_adjacency, split_charts
+from .errors import ChartError, InputError
+from .parameterization import _check_options, parameterize_charts
+
+BAKE_MODES = (None, "checker", "vertex-colors")
+
+
+@dataclass
+class UnwrapResult:
+    """What :func:`unwrap` produced.
+
+    Attributes
+    ----------
+    V : (n,3) float array, F : (m,3) int array
+        The mesh that was unwrapped (after repair).
+    corner_uv : (m,3,2) float array
+        Atlas UVs per triangle corner in [0,1]^2 (v up), the layout of Open3D's ``texture_uvs``.
+    charts : list of Chart
+        The final charts (after cuts and splits); ``chart_ids (m,)`` gives each face's chart.
+    results : list of ParamResult
+        One per final chart.
+    image : (H,W,3) uint8 array or None
+        The baked texture.
+    report : dict
+        JSON-ready report (per chart and atlas).
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    corner_uv: np.ndarray
+    charts: list
+    results: list
+    chart_ids: np.ndarray
+    image: np.ndarray | None
+    vertex_colors: np.ndarray | None
+    report: dict = field(default_factory=dict)
+
+    def save(self, path, *, report_path=None):
+        """Write the textured mesh (OBJ+MTL+PNG or GLB by extension) and optionally the JSON report."""
+        import json
+
+        from .export import save_textured
+        from .io import atomic_write
+
+        image = self.image if self.image is not None else _blank(self.report["atlas"]["texture_size_px"])
+        written = save_textured(path, self.V, self.F, self.corner_uv, image, vertex_colors=self.vertex_colors)
+        if report_path is not None:
+            with atomic_write(report_path) as fh:
+                json.dump(self.report, fh, indent=1)
+            written = list(written) + [report_path]
+        return written
+
+
+def _blank(size):
+    return np.full((size, size, 3), 255, np.uint8)
+
+
+def unwrap(source, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1000, seed=0,
+           face_labels=None, texture_size_px=1024, gutter_px=4, bake=None, auto_cut=True,
+           repair=True, guarantee=True, max_splits=256, continuation=True, workers=None,
+           progress=None, callback=None):
+    """Unwrap a mesh into a validated texture atlas.
+
+    Parameters
+    ----------
+    source : path, (V, F) tuple, trimesh.Trimesh or Open3D mesh
+    alpha, init, backend, tol, max_iter, seed, continuation
+        As in :func:`uvbake.parameterize`.
+    face_labels : (m,) int array, optional
+        Per-face segment labels (overrides labels stored in the file).
+    texture_size_px : int
+        Side of the square texture (16 to 16384).
+    gutter_px : int
+        Minimum gap between charts, in texels.
+    bake : {None, "checker", "vertex-colors"}
+        Texture to bake.
+    auto_cut : bool
+        Cut closed charts and charts with handles into disks (False: such charts are an error).
+    repair : bool
+        Repair non-manifold input (bowties, non-manifold edges, specks, duplicates) with warnings.
+    guarantee : bool
+        Split charts until no triangle is flipped and no two overlap (False: the paper's result as is).
+    max_splits : int
+        Cap on splits; past it the remaining invalid charts are reported, not hidden.
+    progress : callable, optional
+        ``progress(stage, done, total)`` with stage in {"charts", "solve", "split", "pack", "bake"}.
+    callback : callable, optional
+        Per-iteration solver callback (see :func:`uvbake.parameterize`).
+
+    Returns
+    -------
+    UnwrapResult
+    """
+    t0 = time.perf_counter()
+    timings = {}
+    alpha = _check_options(alpha, init, backend, tol, max_iter)
+    if bake not in BAKE_MODES:
+        raise InputError(f"bake={bake!r} is not one of None, 'checker', 'vertex-colors'")
+    _check_texture(texture_size_px, gutter_px)
+    options = dict(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
+                   continuation=continuation, callback=callback)
+    note = progress or (lambda stage, done, total: None)
+
+    from .io import load_mesh
+
+    t = time.perf_counter()
+    mesh = load_mesh(source, face_labels=face_labels)
+    V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
+    repair_report = None
+    if repair:
+        from .repair import repair as repair_mesh
+
+        rep = repair_mesh(V, F)
+        repair_report = rep.to_dict()
+        if rep.actions:
+            labels = None if labels is None else labels[rep.face_index]
+            colors = None if colors is None else colors[rep.vertex_index]
+            V, F = rep.V, rep.F
+    if bake == "vertex-colors" and colors is None:
+        raise InputError(f"{mesh.source}: has no vertex colours to bake; use --bake-mode checker")
+    timings["load_repair_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    charts, cuts = _disk_charts(V, F, labels, auto_cut=auto_cut)
+    n_charts_input = len(charts)
+    timings["charts_s"] = time.perf_counter() - t
+    note("charts", len(charts), len(charts))
+
+    t = time.perf_counter()
+    results = parameterize_charts(charts, workers=workers,
+                                  progress=lambda d, n, r: note("solve", d, n), **options)
+    timings["solve_s"] = time.perf_counter() - t
+    unconstrained = _distortion_summary(charts, results)
+
+    t = time.perf_counter()
+    splits = []
+    if guarantee:
+        charts, results, splits = _split_until_valid(charts, results, options, max_splits=max_splits,
+                                                     workers=workers, note=note)
+    timings["split_s"] = time.perf_counter() - t
+
+    from .pack import corner_uvs, pack_charts
+
+    t = time.perf_counter()
+    packed = pack_charts([r.uv for r in results], [c.F for c in charts],
+                         texture_size_px=texture_size_px, gutter_px=gutter_px)
+    corner_uv = corner_uvs(packed, [c.F for c in charts], [c.face_index for c in charts], len(F))
+    timings["pack_s"] = time.perf_counter() - t
+    note("pack", 1, 1)
+
+    from .validation import validate
+
+    t = time.perf_counter()
+    chart_ids = np.empty(len(F), np.int64)
+    for i, c in enumerate(charts):
+        chart_ids[c.face_index] = i
+    verdict = validate(corner_uv, F, chart_ids=chart_ids, resolution_px=texture_size_px)
+    timings["validate_s"] = time.perf_counter() - t
+
+    image = None
+    t = time.perf_counter()
+    if bake is not None:
+        from .bake import bake_checker, bake_vertex_colors
+
+        if bake == "checker":
+            image = bake_checker(V, F, corner_uv, texture_size_px=texture_size_px,
+                                 texel_size_world=packed.texel_size_world)
+        else:
+            image = bake_vertex_colors(V, F, corner_uv, colors, texture_size_px=texture_size_px)
+        note("bake", 1, 1)
+    timings["bake_s"] = time.perf_counter() - t
+    timings["total_s"] = time.perf_counter() - t0
+
+    report = {
+        "input": mesh.source,
+        "vertices": int(len(V)),
+        "triangles": int(len(F)),
+        "options": {k: v for k, v in options.items() if k != "callback"}
+        | dict(texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake, auto_cut=auto_cut,
+               repair=repair, guarantee=guarantee),
+        "repair": repair_report,
+        "charts_input": n_charts_input,
+        "charts_final": len(charts),
+        "cuts": cuts,
+        "splits": splits,
+        "seam_length_added": float(sum(c["seam_length"] for c in cuts) + sum(s["seam_length"] for s in splits)),
+        "distortion": {"unconstrained": unconstrained, "final": _distortion_summary(charts, results)},
+        "charts": [dict(name=c.name, label=c.label, triangles=int(len(c.F)),
+                        **_distortion(c, r), **r.to_dict()) for c, r in zip(charts, results)],
+        "atlas": dict(texture_size_px=texture_size_px, gutter_px=gutter_px, **_pack_summary(packed),
+                      validation=verdict.to_dict()),
+        "valid": bool(verdict.valid),
+        "all_converged": bool(all(r.converged for r in results)),
+        "n_flipped_total": int(sum(r.n_flipped for r in results)),
+        "timings": timings,
+    }
+    return UnwrapResult(V, F, corner_uv, charts, results, chart_ids, image, colors, report)
+
+
+def _check_texture(texture_size_px, gutter_px):
+    if isinstance(texture_size_px, bool) or not isinstance(texture_size_px, (int, np.integer)) \
+            or not 16 <= texture_size_px <= 16384:
+        raise InputError(f"texture_size_px={texture_size_px!r} must be a whole number of texels from 16 to 16384")
+    if isinstance(gutter_px, bool) or not isinstance(gutter_px, (int, np.integer)) \
+            or not 0 <= gutter_px <= texture_size_px // 8:
+        raise InputError(f"gutter_px={gutter_px!r} must be a whole number of texels from 0 to "
+                         f"{texture_size_px // 8} (an eighth of the texture)")
+
+
+def _disk_charts(V, F, labels, *, auto_cut):
+    """Charts from labels/components; closed charts and handles are cut into disks when allowed."""
+    charts = split_charts(V, F, labels, check=False)
+    out, cuts = [], []
+    for c in charts:
+        try:
+            check_chart(c.V, c.F, name=c.name)
+            out.append(c)
+            continue
+        except ChartError as exc:
+            if not auto_cut or not ("closed" in str(exc) or "handle" in str(exc)):
+                if "closed" in str(exc) or "handle" in str(exc):
+                    raise ChartError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
+                raise
+        from .segment import cut_to_disks
+
+        sub = cut_to_disks(c.V, c.F)
+        parts = _subcharts(c, sub)
+        for p in parts:
+            check_chart(p.V, p.F, name=p.name)
+        cuts.append(dict(chart=c.name, parts=len(parts), seam_length=_seam_length(c, sub)))
+        out.extend(parts)
+    for i, c in enumerate(out):
+        c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
+    return out, cuts
+
+
+def _subcharts(chart, sub_labels):
+    """Split ``chart`` by per-face labels into edge-connected charts mapped into the whole mesh."""
+    parts = split_charts(chart.V, chart.F, np.asarray(sub_labels, dtype=np.int64), check=False)
+    return [Chart(p.V, p.F, chart.vertex_map[p.vertex_map], chart.face_index[p.face_index], chart.label,
+                  f"{chart.name}.{k}") for k, p in enumerate(parts)]
+
+
+def _seam_length(chart, sub_labels):
+    """3D length of the edges whose two faces got different labels."""
+    fi, fj, e = face_adjacency(chart.F, len(chart.V))
+    e = e[np.asarray(sub_labels)[fi] != np.asarray(sub_labels)[fj]]
+    return float(np.linalg.norm(chart.V[e[:, 0]] - chart.V[e[:, 1]], axis=1).sum())
+
+
+def _invalid_faces(chart, result):
+    """Flipped, degenerate and overlapping faces of a solved chart (exact check)."""
+    from .validation import validate
+
+    rep = validate(result.uv, chart.F, chart_ids=np.zeros(len(chart.F), np.int64), resolution_px=1024)
+    det = _dets(chart, result)
+    bad = set(np.flatnonzero(det <= 0).tolist()) | set(np.asarray(rep.flipped).tolist())
+    bad |= set(np.asarray(rep.overlap_pairs).ravel().tolist())
+    return np.array(sorted(bad), dtype=np.int64), rep
+
+
+def _dets(chart, result):
+    from .energy import jacobians, triangle_frames
+
+    _, Q, _ = triangle_frames(chart.V, chart.F)
+    return np.linalg.det(jacobians(Q, chart.F, result.uv))
+
+
+def _split_until_valid(charts, results, options, *, max_splits, workers, note):
+    from .segment import split_where
+
+    splits = []
+    todo = list(range(len(charts)))
+    charts, results = list(charts), list(results)
+    while todo and len(splits) < max_splits:
+        new_charts, parents = [], []
+        for i in todo:
+            bad, rep = _invalid_faces(charts[i], results[i])
+            if len(bad) == 0:
+                continue
+            c = charts[i]
+            if len(c.F) == 1:
+                continue                      # a single triangle cannot be split further
+            sub = split_where(c.V, c.F, bad)
+            parts = _subcharts(c, sub)
+            splits.append(dict(chart=c.name, faces=int(len(c.F)), flipped=int(len(rep.flipped)),
+                               overlapping_pairs=int(len(rep.overlap_pairs)), parts=len(parts),
+                               seam_length=_seam_length(c, sub)))
+            parents.append(i)
+            new_charts.append(parts)
+            if len(splits) >= max_splits:
+                break
+        if not parents:
+            break
+        flat = [p for parts in new_charts for p in parts]
+        note("split", len(splits), len(splits))
+        solved = parameterize_charts(flat, workers=workers, **options)
+        # replace parents by their parts, keep order stable
+        replace = dict(zip(parents, new_charts))
+        solved_iter = iter(solved)
+        out_c, out_r, todo = [], [], []
+        for i, (c, r) in enumerate(zip(charts, results)):
+            if i in replace:
+                for p in replace[i]:
+                    todo.append(len(out_c))
+                    out_c.append(p)
+                    out_r.append(next(solved_iter))
+            else:
+                out_c.append(c)
+                out_r.append(r)
+        charts, results = out_c, out_r
+    return charts, results, splits
+
+
+def _distortion(chart, result):
+    """Area-weighted angle distortion (sigma1/sigma2) and area distortion (|log sigma1 sigma2|)."""
+    from .energy import jacobians, triangle_frames
+
+    _, Q, area = triangle_frames(chart.V, chart.F)
+    s = np.linalg.svd(jacobians(Q, chart.F, result.uv), compute_uv=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        angle = s[:, 0] / s[:, 1]
+        logarea = np.abs(np.log(s[:, 0] * s[:, 1]))
+    w = area / area.sum()
+    finite = np.isfinite(angle) & np.isfinite(logarea)
+    return dict(angle_distortion_mean=float(np.sum(w[finite] * angle[finite])),
+                angle_distortion_max=float(np.max(angle[finite])) if finite.any() else float("inf"),
+                area_distortion_mean=float(np.sum(w[finite] * logarea[finite])),
+                area_3d=float(area.sum()))
+
+
+def _distortion_summary(charts, results):
+    d = [_distortion(c, r) for c, r in zip(charts, results)]
+    total = sum(x["area_3d"] for x in d) or 1.0
+    return dict(
+        charts=len(charts),
+        flipped=int(sum(r.n_flipped for r in results)),
+        energy=float(sum(r.energy for r in results)),
+        angle_distortion_mean=float(sum(x["angle_distortion_mean"] * x["area_3d"] for x in d) / total),
+        angle_distortion_max=float(max(x["angle_distortion_max"] for x in d)),
+        area_distortion_mean=float(sum(x["area_distortion_mean"] * x["area_3d"] for x in d) / total),
+    )
+
+
+def _pack_summary(packed):
+    d = packed.to_dict() if hasattr(packed, "to_dict") else {}
+    return {k: v for k, v in d.items() if k in ("efficiency", "scale", "texel_size_world", "method", "time_s")}
