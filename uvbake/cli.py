@@ -65,6 +65,8 @@ def _parser():
     g.add_argument("--bake", metavar="PNG", help="bake a texture to this PNG: a checkerboard, or the vertex "
                                                  "colours when the name contains 'color'/'colour'")
     g.add_argument("--bake-mode", choices=["checker", "vertex-colors"], help="what --bake bakes (overrides the name)")
+    g.add_argument("--preview", metavar="PNG", help="render the textured mesh from the front, the back and an angle "
+                                                    "into this PNG (Open3D offscreen, headless)")
     p.add_argument("--json", metavar="REPORT", help="write the JSON report here")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
     return p
@@ -135,8 +137,11 @@ def _unwrap_command(args):
             raise InputError(f"--bake {bake_path} must end in .png")
         name = bake_path.stem.lower()
         mode = args.bake_mode or ("vertex-colors" if ("color" in name or "colour" in name) else "checker")
+    elif args.preview:
+        mode = "checker"                    # a preview of an untextured atlas shows the checker
+    preview_path = output_path(args.mesh, args.preview, suffix="_preview", ext=".png") if args.preview else None
     outputs = [out] + ([out.with_suffix(".mtl"), out.with_suffix(".png")] if out.suffix.lower() == ".obj" else [])
-    outputs += [p for p in (report_path, bake_path) if p is not None]
+    outputs += [p for p in (report_path, bake_path, preview_path) if p is not None]
     if len({p.resolve() for p in outputs}) < len(outputs):
         raise InputError(f"two outputs share one path ({', '.join(str(p) for p in outputs)}); "
                          "give -o, --json and --bake different names")
@@ -176,6 +181,11 @@ def _unwrap_command(args):
 
         save_png(bake_path, result.image)
         written = list(written) + [bake_path]
+    if preview_path is not None:
+        from .render import preview
+
+        preview(result, path=preview_path)
+        written = list(written) + [preview_path]
     result.report["outputs"] = [str(p) for p in written] + ([str(report_path)] if report_path else [])
     result.report["timings"]["cli_total_s"] = time.perf_counter() - t0
     if report_path is not None:
