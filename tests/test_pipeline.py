@@ -1,0 +1,107 @@
+"""unwrap(): the whole pipeline, and its guarantee that the atlas has no flips and no overlaps."""
+
+import json
+
+import numpy as np
+import pytest
+
+import uvbake
+from uvbake.pipeline import unwrap
+from meshgen import bumpy_disk, grid
+
+
+def helical_strip(turns=1.5, n_theta=90, n_r=4, pitch=0.04):
+    """A narrow ramp winding 1.5 times: its flattening wants to wind 540 degrees and overlap itself."""
+    st, F = grid(n_theta, n_r)
+    th = 2 * np.pi * turns * st[:, 0]
+    r = 1.0 + 0.25 * st[:, 1]
+    V = np.column_stack([r * np.cos(th), r * np.sin(th), pitch * th])
+    return V, F
+
+
+def assert_valid_atlas(res):
+    v = uvbake.validate(res.corner_uv, res.F, chart_ids=res.chart_ids)
+    assert v.valid and len(v.flipped) == 0 and len(v.overlap_pairs) == 0
+    assert res.report["valid"] and res.report["n_flipped_total"] == 0
+    assert res.corner_uv.min() >= 0 and res.corner_uv.max() <= 1
+    json.dumps(res.report)                                    # JSON-ready
+
+
+def test_a_chart_that_overlaps_itself_is_split_and_validates():
+    V, F = helical_strip()
+    whole = uvbake.parameterize(V, F, alpha=0.5)
+    assert whole.n_flipped == 0
+    assert len(uvbake.validate(whole.uv, F).overlap_pairs) > 0     # the fixture really overlaps
+    res = unwrap((V, F), alpha=0.5, texture_size_px=256)
+    assert_valid_atlas(res)
+    assert res.report["charts_input"] == 1 and res.report["charts_final"] >= 2
+    assert res.report["splits"] and res.report["splits"][0]["overlapping_pairs"] > 0
+    assert res.report["seam_length_added"] > 0
+    # the paper's formulation as is keeps the overlap and says so
+    paper = unwrap((V, F), alpha=0.5, texture_size_px=256, guarantee=False)
+    assert not paper.report["valid"] and paper.report["charts_final"] == 1
+
+
+def test_random_start_on_a_curved_disk_ends_flip_free():
+    V, F = bumpy_disk(14, amp=0.6)
+    for alpha in (0.5, 0.9):
+        res = unwrap((V, F), alpha=alpha, init="random", seed=4, texture_size_px=256)
+        assert_valid_atlas(res)
+        assert all(r.converged for r in res.results)
+
+
+def test_closed_sphere_and_torus_become_valid_atlases():
+    import trimesh
+
+    for mesh in (trimesh.creation.icosphere(subdivisions=3), trimesh.creation.torus(1.0, 0.35)):
+        V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+        with pytest.raises(uvbake.ChartError, match="closed|handle"):
+            unwrap((V, F), auto_cut=False)
+        res = unwrap((V, F), alpha=0.5, texture_size_px=256)
+        assert_valid_atlas(res)
+        assert res.report["cuts"] and res.report["charts_final"] >= 2
+        assert sum(len(c.F) for c in res.charts) == len(F)
+
+
+def test_bowtie_vertices_are_repaired_with_a_report_entry():
+    st, F = grid(5, 5)
+    V = np.column_stack([st, 0.1 * np.sin(3 * st[:, 0])])
+    # remove the two cells diagonal to each other at the centre vertex 12: its two remaining fans
+    # meet only there, while the rest of the grid still connects them (one chart, one bowtie)
+    n_cells = 16
+    Fb = np.delete(F, [6, 6 + n_cells, 9, 9 + n_cells], axis=0)
+    Vb = V
+    np.testing.assert_array_equal(uvbake.charts.nonmanifold_vertices(Fb, len(Vb)), [12])
+    assert len(uvbake.split_charts(Vb, Fb, check=False)) == 1
+    res = unwrap((Vb, Fb), alpha=0.5, texture_size_px=128)
+    assert_valid_atlas(res)
+    kinds = {a["kind"] for a in res.report["repair"]["actions"]}
+    assert "split_nonmanifold_vertices" in kinds, kinds
+    with pytest.raises(uvbake.ChartError, match="non-manifold vertices"):
+        unwrap((Vb, Fb), repair=False)
+
+
+def test_report_shows_the_price_of_the_guarantee():
+    V, F = helical_strip()
+    rep = unwrap((V, F), alpha=0.5, texture_size_px=256).report
+    for key in ("unconstrained", "final"):
+        d = rep["distortion"][key]
+        assert d["angle_distortion_mean"] >= 1 and d["area_distortion_mean"] >= 0
+    assert rep["distortion"]["unconstrained"]["charts"] == rep["charts_input"]
+    assert rep["distortion"]["final"]["charts"] == rep["charts_final"]
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(texture_size_px=8), "texture_size_px"), (dict(texture_size_px=100.5), "texture_size_px"),
+    (dict(gutter_px=-1), "gutter_px"), (dict(bake="plasma"), "bake"), (dict(alpha=2), "alpha"),
+])
+def test_bad_options(kwargs, match):
+    V, F = bumpy_disk(6)
+    with pytest.raises(uvbake.InputError, match=match):
+        unwrap((V, F), **kwargs)
+
+
+def test_vertex_colours_requested_without_colours_is_an_error():
+    V, F = bumpy_disk(6)
+    with pytest.raises(uvbake.InputError, match="no vertex colours"):
+        unwrap((V, F), bake="vertex-colors")
