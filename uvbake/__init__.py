@@ -20,6 +20,10 @@ _LAZY = {
     "load_mesh": ("uvbake.io", "load_mesh"),
     "split_charts": ("uvbake.charts", "split_charts"),
     "validate": ("uvbake.validation", "validate"),
+    "unwrap": ("uvbake.pipeline", "unwrap"),
+    "UnwrapResult": ("uvbake.pipeline", "UnwrapResult"),
+    "repair": ("uvbake.repair", "repair"),
+    "pack_charts": ("uvbake.pack", "pack_charts"),
 }
 
 
