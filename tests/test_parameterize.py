@@ -152,3 +152,28 @@ def test_halftunnel_converges_from_lscm_and_random():
         r = parameterize(m.V, m.F, alpha=0.5, init=init)
         assert r.converged, r.stop_reason
         assert r.iterations <= 400
+
+
+@pytest.mark.parametrize("continuation", [False, True])
+def test_lm_escapes_a_saddle_and_ends_at_a_local_minimum(continuation):
+    # the collapsed map (all UVs equal) is stationary for every alpha > 0: grad det = 0 there, and
+    # the Hessian -2 alpha Hess(det) is indefinite. Plain first-order stopping would accept it.
+    V, F = plane()
+    E = DistortionEnergy(V, F, alpha=0.5)
+    assert np.linalg.norm(E.gradient(np.zeros((len(V), 2)))) == 0
+    r = parameterize(V, F, alpha=0.5, uv0=np.zeros((len(V), 2)), continuation=continuation)
+    assert r.converged and r.energy / len(F) < 1e-10
+    np.testing.assert_allclose(singular_values(V, F, r.uv), 1.0, atol=1e-6)
+
+
+@pytest.mark.meshes
+def test_halftunnel_alpha_05_ends_at_a_minimum_not_a_saddle():
+    # found by the L-BFGS cross-check: with an L D L^T factorisation that accepted indefinite
+    # matrices, LM stopped at a saddle with F 102.72 and two negative Hessian eigenvalues
+    from uvbake.crosscheck import is_local_minimum
+    from uvbake.io import load_mesh
+
+    m = load_mesh(shared_mesh("halftunnel.off"))
+    r = parameterize(m.V, m.F, alpha=0.5)
+    assert r.converged and r.energy == pytest.approx(96.42475801, rel=1e-8)
+    assert is_local_minimum(m.V, m.F, r.uv, alpha=0.5)
