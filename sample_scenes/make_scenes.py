@@ -10,8 +10,9 @@ each chart a single disk with the expected number of holes.
 Files (binary little-endian PLY, float32 positions, uchar colours, int ``segment`` face property):
   disk_holes.ply        bumpy height field over a disk with 3 holes, one chart
   sphere_cap.ply        part of the unit sphere with z > -0.3 and 2 holes, one chart
-  scene.ply             bent rippled sheet, 5 charts in a ``segment`` face property, vertex colours,
-                        the middle chart with 2 holes
+  scene.ply             bent rippled sheet, 8 charts of varied size and aspect in a ``segment`` face
+                        property (crease lines, some slanted), vertex colours; chart 0 with 2 holes,
+                        chart 5 with 1
   multi_component.ply   4 separate patches (saddle, cone annulus, dome, half cylinder), no labels
   README.md             the table of the above
 """
@@ -243,16 +244,111 @@ def sphere_cap(rng):
     return to_sphere(P), F, None, None
 
 
+def _at(a, b, u=None, v=None):
+    """The point of the line through a and b with the given u (or v)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    t = (u - a[0]) / (b[0] - a[0]) if u is not None else (v - a[1]) / (b[1] - a[1])
+    return tuple(a + t * (b - a))
+
+
+# scene.ply's sheet (u, v in [0, W] x [0, H] before bending) and its segmentation, laid out as a scan
+# segmentation would leave it: 8 charts of varied size and aspect (2 large, 2 medium, 4 small), cut by
+# crease polylines (each end on the border or on another crease; some slanted or kinked), with holes
+# (scan gaps) in charts 0 and 5, and one seed point per chart that fixes its label.
+SCENE_W, SCENE_H = 3.0, 2.0
+_C1 = [(0.0, 1.1), (1.6, 1.1), (3.0, 1.15)]                       # the long crease across the sheet
+_C3 = [(1.6, 0.55), (3.0, 0.5)]
+SCENE_CREASES = [
+    _C1,
+    [(1.6, 0.0), (1.6, 1.1)],
+    _C3,
+    [_at(*_C3, u=2.4), _at(*_C1[1:], u=2.3)],
+    [(0.8, 1.1), (0.9, SCENE_H)],
+    [_at(*_C1[1:], u=2.2), (2.2, SCENE_H)],
+    [(2.2, 1.6), (3.0, 1.6)],
+]
+SCENE_HOLES = [((0.55, 0.45), 0.17), ((1.12, 0.7), 0.12), ((1.5, 1.55), 0.14)]
+SCENE_SEEDS = [  # one point inside each chart, in label order
+    (0.3, 0.2),     # 0: large, 2 holes
+    (2.3, 0.25),    # 1: wide strip
+    (2.0, 0.8),     # 2: medium, slanted side
+    (2.7, 0.8),     # 3: medium, slanted side
+    (0.4, 1.5),     # 4: tall
+    (1.3, 1.8),     # 5: large, 1 hole
+    (2.6, 1.4),     # 6: small
+    (2.6, 1.8),     # 7: small strip
+]
+
+
+def _point_segment_distance(p, a, b):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    t = np.clip((p - a) @ (b - a) / np.dot(b - a, b - a), 0, 1)
+    return np.linalg.norm(p - (a + t[:, None] * (b - a)), axis=1)
+
+
+def _split_at_ends(polylines, others=()):
+    """Straight pieces of the polylines, split wherever an end of a polyline (theirs or others') lies."""
+    ends = [np.asarray(p, float) for line in [*polylines, *others] for p in (line[0], line[-1])]
+    pieces = []
+    for line in polylines:
+        for a, b in zip(line[:-1], line[1:]):
+            a, b = np.asarray(a, float), np.asarray(b, float)
+            cuts = sorted({float((p - a) @ (b - a) / np.dot(b - a, b - a)) for p in ends
+                           if _point_segment_distance(p[None], a, b)[0] < 1e-9})
+            nodes = [a] + [a + t * (b - a) for t in cuts if 1e-9 < t < 1 - 1e-9] + [b]
+            pieces += list(zip(nodes[:-1], nodes[1:]))
+    return pieces
+
+
+def _labels_by_crease(P, F, creases, seeds):
+    """Label the faces by the edge-connected pieces the crease segments cut the mesh into.
+
+    Pieces are numbered by the seed point that lies in them; every piece must hold exactly one seed.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    half = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    face = np.tile(np.arange(len(F)), 3)
+    key = np.sort(half, axis=1)
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    key, face = key[order], face[order]
+    pair = np.all(key[1:] == key[:-1], axis=1)                     # interior edges: two half-edges
+    a, b, fa, fb = key[:-1][pair, 0], key[:-1][pair, 1], face[:-1][pair], face[1:][pair]
+    cut = np.zeros(len(a), bool)                                   # both ends on one crease piece
+    for s, t in creases:
+        cut |= (_point_segment_distance(P[a], s, t) < 1e-9) & (_point_segment_distance(P[b], s, t) < 1e-9)
+    graph = coo_matrix((np.ones(int((~cut).sum())), (fa[~cut], fb[~cut])), shape=(len(F), len(F)))
+    n, piece = connected_components(graph, directed=False)
+    centroids = P[F].mean(axis=1)
+    seed_piece = [piece[np.argmin(np.linalg.norm(centroids - np.asarray(q), axis=1))] for q in seeds]
+    assert sorted(seed_piece) == list(range(n)), f"{n} pieces for {len(seeds)} seeds"
+    relabel = np.empty(n, np.int64)
+    relabel[seed_piece] = np.arange(n)
+    return relabel[piece]
+
+
+def _scene_colors(u, v):
+    """Smooth colour waves over the sheet, about one period per large chart, so every chart's texture
+    varies inside it (a chart moved in the atlas changes its texels, not only its outline)."""
+    return 0.5 + 0.5 * np.column_stack([np.cos(2 * math.pi * u / 1.5),
+                                        np.cos(2 * math.pi * v / 1.25 + 0.6 * u),
+                                        np.cos(math.pi * (u + v) / 1.1)])
+
+
 def scene(rng):
-    """A bent, rippled 3 x 2 sheet split by crease lines into 5 labelled charts."""
+    """A bent, rippled 3 x 2 sheet split by crease lines into 8 labelled charts of varied size."""
     h = 0.05
-    W, H = 3.0, 2.0
-    holes = [((1.5, 0.6), 0.22), ((1.5, 1.4), 0.16)]
-    lines = [((1, 0), (1, H)), ((2, 0), (2, H)), ((0, 1), (1, 1)), ((2, 1.2), (W, 1.2))]
-    fixed = [rectangle_points(0, 0, W, H, h)] + [circle_points(c, r, h) for c, r in holes]
+    W, H = SCENE_W, SCENE_H
+    holes = SCENE_HOLES
+    border = [(0.0, 0.0), (W, 0.0), (W, H), (0.0, H), (0.0, 0.0)]
+    border_pieces = _split_at_ends([border], SCENE_CREASES)
+    crease_pieces = _split_at_ends(SCENE_CREASES)
+    outline = np.vstack([segment_points(a, b, h) for a, b in border_pieces])
+    fixed = [outline] + [circle_points(c, r, h) for c, r in holes]
     hole_id = np.concatenate([np.full(len(p), k) for k, p in enumerate(fixed)])
-    crease = np.vstack([segment_points(a, b, h, include_end=True) for a, b in lines])
-    crease = _new_points(crease, np.vstack(fixed))  # ends on the boundary or on another line
+    crease = np.vstack([segment_points(a, b, h, include_end=True) for a, b in crease_pieces])
+    crease = _new_points(crease, np.vstack(fixed))
     fixed = np.vstack(fixed + [crease])
     hole_id = np.concatenate([hole_id, np.zeros(len(crease), np.int64)])
 
@@ -263,12 +359,7 @@ def scene(rng):
         return d
 
     def line_dist(p):
-        d = np.full(len(p), np.inf)
-        for a, b in lines:
-            a, b = np.asarray(a, float), np.asarray(b, float)
-            t = np.clip((p - a) @ (b - a) / np.dot(b - a, b - a), 0, 1)
-            d = np.minimum(d, np.linalg.norm(p - (a + t[:, None] * (b - a)), axis=1))
-        return d
+        return np.min([_point_segment_distance(p, a, b) for a, b in crease_pieces], axis=0)
 
     def inside(p):
         return (sdf(p) < -0.3 * h) & (line_dist(p) > 0.3 * h)
@@ -276,10 +367,8 @@ def scene(rng):
     free = hex_points(0, 0, W, H, h, rng)
     free = free[(sdf(free) < -0.55 * h) & (line_dist(free) > 0.55 * h)]
     P, F = mesh_domain(fixed, hole_id, free, inside, lambda c: sdf(c) > 0)
+    labels = _labels_by_crease(P, F, crease_pieces, SCENE_SEEDS)
 
-    c = P[F].mean(axis=1)
-    labels = np.where(c[:, 0] < 1, np.where(c[:, 1] < 1, 0, 1),
-                      np.where(c[:, 0] < 2, 2, np.where(c[:, 1] < 1.2, 3, 4))).astype(np.int64)
     u, v = P[:, 0], P[:, 1]
     R = 1.4
     phi = (u - W / 2) / R
@@ -287,8 +376,7 @@ def scene(rng):
     X = np.column_stack([R * np.sin(phi), v, R * (1 - np.cos(phi))])
     normal = np.column_stack([-np.sin(phi), np.zeros_like(phi), np.cos(phi)])
     X = X + ripple[:, None] * normal
-    colors = np.column_stack([u / W, v / H, 0.5 + 0.5 * np.cos(math.pi * u / 1.5) * np.cos(math.pi * v)])
-    return X, F, colors, labels
+    return X, F, _scene_colors(u, v), labels
 
 
 def multi_component(rng):
@@ -379,8 +467,9 @@ def ply_bytes(V, F, colors=None, labels=None, comment=""):
 SCENES = {
     "disk_holes.ply": (disk_holes, "bumpy height field over a disk with 3 holes", 1, (4,)),
     "sphere_cap.ply": (sphere_cap, "unit sphere above z=-0.3 with 2 holes", 1, (3,)),
-    "scene.ply": (scene, "bent rippled sheet, 5 charts in face property 'segment', vertex colours", 5,
-                  (1, 1, 3, 1, 1)),
+    "scene.ply": (scene, "bent rippled sheet, 8 charts of varied size in face property 'segment', "
+                  "vertex colours", 8,
+                  (3, 1, 1, 1, 1, 2, 1, 1)),
     "multi_component.ply": (multi_component, "saddle, cone annulus, dome, half cylinder; no labels", 4,
                             (1, 2, 1, 1)),
 }

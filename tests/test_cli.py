@@ -29,7 +29,7 @@ def test_unwrap_scene_writes_textured_mesh_and_report(scene, tmp_path, capsys):
     assert scene.read_bytes() == before
     report = json.loads(rep.read_text())
     assert report["valid"] and report["all_converged"] and report["n_flipped_total"] == 0
-    assert len(report["charts"]) == 5 and report["charts_input"] == 5
+    assert len(report["charts"]) == 8 and report["charts_input"] == 8
     assert all(c["grad_norm"] < 1e-8 and c["alpha"] == 0.5 for c in report["charts"])
     assert 0.3 < report["atlas"]["efficiency"] <= 1
     from PIL import Image
@@ -53,7 +53,7 @@ def test_unwrap_scene_writes_textured_mesh_and_report(scene, tmp_path, capsys):
         energies.append(DistortionEnergy(c.V, c.F, alpha=0.5).value(per_vertex))
     assert sorted(energies) == pytest.approx(sorted(c["energy"] for c in report["charts"]), rel=1e-5)
     assert len(uv) > len(mesh.V)                                 # seams split in UV
-    assert "5 chart(s)" in capsys.readouterr().out
+    assert "8 chart(s)" in capsys.readouterr().out
 
 
 def test_default_output_sits_beside_the_input(scene):

@@ -97,17 +97,21 @@ def test_sphere_cap_lies_on_the_unit_sphere_and_faces_outward():
     assert np.all(np.sum(normals * T.mean(axis=1), axis=1) > 0)
 
 
-def test_scene_has_five_labelled_disk_charts_and_colours():
+def test_scene_has_eight_labelled_disk_charts_of_varied_size_and_colours():
     mesh = load_mesh(SAMPLE_SCENES / "scene.ply")
-    assert surface_stats(mesh.F) == {"components": 1, "loops": 3, "chi": -1, "genus": 0}
-    assert np.array_equal(np.unique(mesh.face_labels), np.arange(5))
-    loops = []
-    for k in range(5):
+    assert surface_stats(mesh.F) == {"components": 1, "loops": 4, "chi": -2, "genus": 0}
+    assert np.array_equal(np.unique(mesh.face_labels), np.arange(8))
+    loops, areas = [], []
+    T = mesh.V[mesh.F]
+    face_area = 0.5 * np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+    for k in range(8):
         stats = surface_stats(mesh.F[mesh.face_labels == k])
         assert stats["components"] == 1 and stats["genus"] == 0, f"chart {k}: {stats}"
         assert stats["chi"] == 2 - stats["loops"]
         loops.append(stats["loops"])
-    assert loops == [1, 1, 3, 1, 1]  # chart 2 has two holes
+        areas.append(face_area[mesh.face_labels == k].sum())
+    assert loops == [3, 1, 1, 1, 1, 2, 1, 1]  # chart 0 has two holes, chart 5 one
+    assert max(areas) > 4 * min(areas)        # a few large charts and several small ones
     c = mesh.vertex_colors
     assert c.shape == mesh.V.shape and c.min() >= 0 and c.max() <= 1
     assert len(np.unique(np.round(c * 255), axis=0)) > 500  # a gradient, not a flat tint
