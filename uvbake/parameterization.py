@@ -198,7 +198,7 @@ def _parameterize(V, F, *, alpha, init, backend, tol, max_iter, seed, uv0, callb
     )
 
 
-def parameterize_charts(charts, *, workers=None, progress=None, **options):
+def parameterize_charts(charts, *, workers=None, progress=None, starts=None, **options):
     """Parameterize several charts independently, in parallel threads.
 
     Parameters
@@ -209,6 +209,8 @@ def parameterize_charts(charts, *, workers=None, progress=None, **options):
         (sparse factorisations, numpy kernels) releases the GIL.
     progress : callable, optional
         Called as ``progress(done, total, result)`` after each chart finishes.
+    starts : list of ((k,2) array or None), optional
+        A start map per chart (``uv0`` of :func:`parameterize`); None keeps ``init``.
     **options
         Passed to :func:`parameterize` (alpha, init, backend, tol, max_iter, seed, ...).
 
@@ -227,7 +229,8 @@ def parameterize_charts(charts, *, workers=None, progress=None, **options):
 
     def run(i):
         V, F, name = items[i]
-        return i, parameterize(V, F, name=name, **options)
+        uv0 = None if starts is None else starts[i]
+        return i, parameterize(V, F, name=name, uv0=uv0, **options)
 
     if workers <= 1 or len(items) == 1:
         for i in range(len(items)):

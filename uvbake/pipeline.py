@@ -252,11 +252,13 @@ def _disk_charts(V, F, labels, *, auto_cut):
     return out, cuts
 
 
-def _subcharts(chart, sub_labels):
-    """Split ``chart`` by per-face labels into edge-connected charts mapped into the whole mesh."""
+def _subcharts(chart, sub_labels, *, with_local=False):
+    """Split ``chart`` by per-face labels into edge-connected charts mapped into the whole mesh
+    (and, with ``with_local``, each part's vertex indices in ``chart``)."""
     parts = split_charts(chart.V, chart.F, np.asarray(sub_labels, dtype=np.int64), check=False)
-    return [Chart(p.V, p.F, chart.vertex_map[p.vertex_map], chart.face_index[p.face_index], chart.label,
-                  f"{chart.name}.{k}") for k, p in enumerate(parts)]
+    out = [Chart(p.V, p.F, chart.vertex_map[p.vertex_map], chart.face_index[p.face_index], chart.label,
+                 f"{chart.name}.{k}") for k, p in enumerate(parts)]
+    return (out, [p.vertex_map for p in parts]) if with_local else out
 
 
 def _seam_length(chart, sub_labels):
@@ -277,6 +279,11 @@ def _invalid_faces(chart, result):
     return np.array(sorted(bad), dtype=np.int64), rep
 
 
+class _Uv:
+    def __init__(self, uv):
+        self.uv = uv
+
+
 def _dets(chart, result):
     from .energy import jacobians, triangle_frames
 
@@ -291,7 +298,7 @@ def _split_until_valid(charts, results, options, *, max_splits, workers, note):
     todo = list(range(len(charts)))
     charts, results = list(charts), list(results)
     while todo and len(splits) < max_splits:
-        new_charts, parents = [], []
+        new_charts, parents, starts = [], [], []
         for i in todo:
             bad, rep = _invalid_faces(charts[i], results[i])
             if len(bad) == 0:
@@ -300,7 +307,12 @@ def _split_until_valid(charts, results, options, *, max_splits, workers, note):
             if len(c.F) == 1:
                 continue                      # a single triangle cannot be split further
             sub = split_where(c.V, c.F, bad)
-            parts = _subcharts(c, sub)
+            parts, local = _subcharts(c, sub, with_local=True)
+            for p, loc in zip(parts, local):
+                # warm start from the parent's map where its restriction has nothing flipped
+                # (the split moved the bad region away from this part); otherwise a fresh start
+                uv = results[i].uv[loc]
+                starts.append(uv if np.all(_dets(p, _Uv(uv)) > 0) else None)
             splits.append(dict(chart=c.name, faces=int(len(c.F)), flipped=int(len(rep.flipped)),
                                overlapping_pairs=int(len(rep.overlap_pairs)), parts=len(parts),
                                seam_length=_seam_length(c, sub)))
@@ -312,7 +324,7 @@ def _split_until_valid(charts, results, options, *, max_splits, workers, note):
             break
         flat = [p for parts in new_charts for p in parts]
         note("split", len(splits), len(splits))
-        solved = parameterize_charts(flat, workers=workers, **options)
+        solved = parameterize_charts(flat, workers=workers, starts=starts, **options)
         # replace parents by their parts, keep order stable
         replace = dict(zip(parents, new_charts))
         solved_iter = iter(solved)
