@@ -14,7 +14,7 @@ $SUDO apt-get install -y -qq --no-install-recommends \
     libusb-1.0-0 libgl1 libegl1 libgomp1 libvulkan1 mesa-vulkan-drivers \
     libsuitesparse-dev libopenblas0-pthread build-essential >/dev/null
 python3 -m pip install -q --upgrade pip
-python3 -m pip install -q -e ".[cholmod,test]"
+python3 -m pip install -q -c constraints.txt -e ".[cholmod,test]"
 # the Khronos glTF validator, used by the tests to check exported GLB files
 if ! command -v npm >/dev/null; then $SUDO apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null; fi
 npm install --silent --no-audit --no-fund --prefix "${UVBAKE_NODE_PREFIX:-$HOME/.cache/uvbake/node}" \
