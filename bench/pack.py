@@ -4,7 +4,7 @@
     python bench/pack.py --quick      # scene.ply only, texture 1024, gutter 4
 
 Chart sets are real flattened charts (``uvbake.parameterize_charts(charts, alpha=0.5)``):
-- scene.ply (5 labelled charts), multi_component.ply (4 components), both from sample_scenes/;
+- scene.ply (8 labelled charts), multi_component.ply (4 components), both from sample_scenes/;
 - beetle-30 / camelhead-40: the research meshes in ../shared/meshes cut into pieces by k-means on face
   centroids (each piece split into edge-connected charts; pieces that are not disks are skipped).
 

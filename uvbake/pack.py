@@ -26,7 +26,8 @@ Choice of the default (``"auto"`` = ``"maxrects"``), from ``python bench/pack.py
 alpha 0.5; efficiency at texture 1024/2048 and gutter 2/4 px; time per call at 1024 px, 4 px)::
 
     scene              charts  maxrects            xatlas              rectpack
-    scene.ply             5    61.7-62.8 %  0.02 s  62.0-62.4 %  0.9 s  61.7-62.8 %  0.01 s
+    scene.ply (old, 5)    5    61.7-62.8 %  0.02 s  62.0-62.4 %  0.9 s  61.7-62.8 %  0.01 s
+    scene.ply (now, 8)    8    80.7-82.5 %          60.3-64.8 %         77.7-79.6 %
     multi_component.ply   4    79.2-80.2 %  0.02 s  55.5-63.9 %  1.0 s  79.2-80.2 %  0.01 s
     beetle, 30 k-means    30   58.2-59.9 %  0.6 s   52.5-56.3 %  2.7 s  55.4-57.1 %  0.1 s
     camelhead, 40 k-means 45   61.3-63.6 %  0.6 s   fails (*)           60.3-62.7 %  0.16 s
@@ -42,7 +43,8 @@ loses here: the charts are nearly convex (their minimum-area rectangles are 66-9
 padding leaves 2p+1 texels (uvbake searches p for the gutter, so gaps overshoot), its 90-degree turn
 and "rotate to axis" options mirror charts (so uvbake turns them off and pre-rotates), and several
 ``add_uv_mesh`` calls scrambled faces (uvbake adds one mesh). The 70 % target is met on
-multi_component.ply (80 %) but not on scene.ply (62.8 %): its five charts are near-rectangles
+multi_component.ply (80 %) and on today's scene.ply (80.7-82.5 %); the earlier scene.ply (62.8 %) had
+five charts that were near-rectangles
 (2.06 x 1.03, 1.24 x 1.01, two 1.03 x 1.02, 1.02 x 0.82) whose sides all exceed 0.8, so a square atlas
 needs three rows or columns; no packer measured did better. The k-means pieces fill only 66-70 % of
 their minimum-area rectangles, which caps any box packer below 70 %.
