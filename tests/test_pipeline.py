@@ -105,3 +105,14 @@ def test_vertex_colours_requested_without_colours_is_an_error():
     V, F = bumpy_disk(6)
     with pytest.raises(uvbake.InputError, match="no vertex colours"):
         unwrap((V, F), bake="vertex-colors")
+
+
+def test_splits_and_merges_add_up_and_every_merge_validates():
+    V, F = helical_strip(turns=2.0)
+    rep = unwrap((V, F), alpha=0.5, texture_size_px=256).report
+    extra_parts = sum(s["parts"] - 1 for s in rep["splits"])
+    assert rep["charts_final"] == rep["charts_input"] + extra_parts - len(rep["merges"])
+    assert rep["valid"]
+    seam_split = sum(s["seam_length"] for s in rep["splits"])
+    seam_merged = sum(m["seam_length"] for m in rep["merges"])
+    assert rep["seam_length_added"] == pytest.approx(seam_split - seam_merged)
