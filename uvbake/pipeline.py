@@ -153,13 +153,14 @@ def unwrap(source, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1
     t = time.perf_counter()
     splits, merges = [], []
     if guarantee:
-        charts, results, splits = _split_until_valid(charts, results, options, max_splits=max_splits,
-                                                     workers=workers, note=note)
+        charts, results, splits, known_invalid = _split_until_valid(
+            charts, results, options, max_splits=max_splits, workers=workers, note=note)
         if splits:
             # merging may add at most 30% to the time solving and splitting took (camelhead at
             # alpha 0.5: 17 -> 6 charts with no limit, but 97 s instead of 17 s)
             budget_s = max(1.0, 0.3 * (time.perf_counter() - t + timings["solve_s"]))
-            charts, results, merges = _merge_back(V, F, charts, results, options, note=note, budget_s=budget_s)
+            charts, results, merges = _merge_back(V, F, charts, results, options, note=note, budget_s=budget_s,
+                                                  known_invalid=known_invalid)
     timings["split_s"] = time.perf_counter() - t
 
     from .pack import corner_uvs, pack_charts
@@ -301,7 +302,7 @@ def _dets(chart, result):
 def _split_until_valid(charts, results, options, *, max_splits, workers, note):
     from .segment import split_where
 
-    splits = []
+    splits, known_invalid = [], []
     todo = list(range(len(charts)))
     charts, results = list(charts), list(results)
     while todo and len(splits) < max_splits:
@@ -315,6 +316,7 @@ def _split_until_valid(charts, results, options, *, max_splits, workers, note):
                 continue                      # a single triangle cannot be split further
             sub = split_where(c.V, c.F, bad)
             parts, local = _subcharts(c, sub, with_local=True)
+            known_invalid.append(c.face_index)
             for p, loc in zip(parts, local):
                 # warm start from the parent's map where its restriction has nothing flipped
                 # (the split moved the bad region away from this part); otherwise a fresh start
@@ -346,10 +348,10 @@ def _split_until_valid(charts, results, options, *, max_splits, workers, note):
                 out_c.append(c)
                 out_r.append(r)
         charts, results = out_c, out_r
-    return charts, results, splits
+    return charts, results, splits, known_invalid
 
 
-def _merge_back(V, F, charts, results, options, *, note, budget_s, max_attempts_per_chart=2):
+def _merge_back(V, F, charts, results, options, *, note, budget_s, known_invalid=(), max_attempts_per_chart=2):
     """Greedily re-join neighbouring charts along their longest shared seams.
 
     Splitting decides top-down, so parts often end smaller than they need to be. Each candidate union
@@ -390,6 +392,10 @@ def _merge_back(V, F, charts, results, options, *, note, budget_s, max_attempts_
             tried.add(sig)
             attempts += 1
             faces = np.concatenate([charts[i].face_index, charts[j].face_index])
+            inside = np.zeros(len(F), bool)
+            inside[faces] = True
+            if any(inside[p].all() for p in known_invalid):
+                continue              # it would contain a chart already split for being invalid
             vmap, local = np.unique(F[faces], return_inverse=True)
             union = Chart(V[vmap], local.reshape(-1, 3), vmap, faces, charts[i].label, charts[i].name)
             try:
