@@ -48,3 +48,15 @@ def bumpy_disk(n=14, *, amp=0.35, seed=0):
     x, y = 2 * st[:, 0] - 1, 2 * st[:, 1] - 1
     V = np.column_stack([x, y, amp * np.sin(2.5 * x) * np.cos(2.0 * y) + 0.3 * (x * x - y * y)])
     return V, F
+
+
+def torus(nu=12, nv=8, R=2.0, r=0.7):
+    """A closed torus (genus 1), u around the axis, v around the tube."""
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    a, b = idx, np.roll(idx, -1, 0)
+    c, d = np.roll(b, -1, 1), np.roll(a, -1, 1)
+    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, nu, endpoint=False),
+                       np.linspace(0, 2 * np.pi, nv, endpoint=False), indexing="ij")
+    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1)
+    return V.reshape(-1, 3), F

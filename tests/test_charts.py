@@ -5,18 +5,7 @@ import pytest
 
 import uvbake
 from uvbake.charts import check_chart, nonmanifold_vertices, split_charts, topology
-from meshgen import bumpy_disk, grid
-
-
-def torus(nu=12, nv=8, R=2.0, r=0.7):
-    idx = np.arange(nu * nv).reshape(nu, nv)
-    a, b = idx, np.roll(idx, -1, 0)
-    c, d = np.roll(b, -1, 1), np.roll(a, -1, 1)
-    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
-    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, nu, endpoint=False),
-                       np.linspace(0, 2 * np.pi, nv, endpoint=False), indexing="ij")
-    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1)
-    return V.reshape(-1, 3), F
+from meshgen import bumpy_disk, grid, torus
 
 
 def octahedron():

@@ -130,20 +130,6 @@ def test_sample_scene_and_bad_input():
         uvbake_open3d.unwrap(o3d.geometry.PointCloud())
 
 
-#: The README's Open3D example (the lead pastes it in README.md; test_readme_example runs whichever
-#: copy is there, and this copy always).
-EXAMPLE = '''\
-import open3d as o3d
-import uvbake_open3d
-
-mesh = o3d.t.io.read_triangle_mesh("sample_scenes/scene.ply")
-mesh = uvbake_open3d.unwrap(mesh, alpha=0.5, texture_size_px=256)   # where mesh.compute_uvatlas() goes
-uvs = mesh.triangle.texture_uvs                     # (m,3,2) float32, v up, as compute_uvatlas leaves it
-texture = mesh.material.texture_maps["albedo"]      # baked from the vertex colours
-o3d.t.io.write_triangle_mesh("scene_uv.obj", mesh)  # OBJ + MTL + PNG
-'''
-
-
 def _run_example(code, tmp_path, monkeypatch):
     (tmp_path / "sample_scenes").symlink_to(SAMPLE_SCENES)
     monkeypatch.chdir(tmp_path)
@@ -152,16 +138,11 @@ def _run_example(code, tmp_path, monkeypatch):
     return scope
 
 
-def test_example(tmp_path, monkeypatch):
-    scope = _run_example(EXAMPLE, tmp_path, monkeypatch)
-    assert tuple(scope["uvs"].shape)[1:] == (3, 2) and scope["texture"].rows == 256
-    assert (tmp_path / "scene_uv.obj").exists()
-
-
 def test_readme_example(tmp_path, monkeypatch):
     readme = (REPO / "README.md").read_text()
     blocks = [b for b in re.findall(r"```python\n(.*?)```", readme, re.S) if "import uvbake_open3d" in b]
-    if not blocks:
-        pytest.skip("README.md has no uvbake_open3d example yet")
+    assert blocks, "README.md lost its uvbake_open3d example"
     scope = _run_example(blocks[0], tmp_path, monkeypatch)
     assert isinstance(scope["mesh"], o3d.t.geometry.TriangleMesh)
+    assert tuple(scope["uvs"].shape)[1:] == (3, 2) and scope["texture"].rows == 256
+    assert (tmp_path / "scene_uv.obj").exists()

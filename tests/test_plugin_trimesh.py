@@ -97,20 +97,6 @@ def test_sample_scene_and_bad_input():
         uvbake_trimesh.unwrap(trimesh.Scene())
 
 
-#: The README's trimesh example (the lead pastes it in README.md; test_readme_example runs whichever
-#: copy is there, and this copy always).
-EXAMPLE = '''\
-import trimesh
-import uvbake_trimesh
-
-mesh = trimesh.load("sample_scenes/disk_holes.ply", process=False)
-textured = uvbake_trimesh.unwrap(mesh, alpha=0.5, texture_size_px=256)   # instead of mesh.unwrap()
-uvbake_trimesh.export(textured, "disk_holes_uv.glb")      # seams kept; checked by reading it back
-again = uvbake_trimesh.load("disk_holes_uv.glb")
-print(len(again.vertices), "vertices,", again.visual.uv.shape, "UVs")
-'''
-
-
 def _run_example(code, tmp_path, monkeypatch):
     (tmp_path / "sample_scenes").symlink_to(SAMPLE_SCENES)
     monkeypatch.chdir(tmp_path)
@@ -119,16 +105,11 @@ def _run_example(code, tmp_path, monkeypatch):
     return scope
 
 
-def test_example(tmp_path, monkeypatch):
-    scope = _run_example(EXAMPLE, tmp_path, monkeypatch)
-    assert (tmp_path / "disk_holes_uv.glb").exists()
-    assert np.abs(uvbake_trimesh.corner_uv(scope["again"]) - uvbake_trimesh.corner_uv(scope["textured"])).max() < 1e-6
-
-
 def test_readme_example(tmp_path, monkeypatch):
     readme = (REPO / "README.md").read_text()
     blocks = [b for b in re.findall(r"```python\n(.*?)```", readme, re.S) if "import uvbake_trimesh" in b]
-    if not blocks:
-        pytest.skip("README.md has no uvbake_trimesh example yet")
+    assert blocks, "README.md lost its uvbake_trimesh example"
     scope = _run_example(blocks[0], tmp_path, monkeypatch)
     assert isinstance(scope["textured"].visual, trimesh.visual.TextureVisuals)
+    assert (tmp_path / "disk_holes_uv.glb").exists()
+    assert np.abs(uvbake_trimesh.corner_uv(scope["again"]) - uvbake_trimesh.corner_uv(scope["textured"])).max() < 1e-6

@@ -6,22 +6,11 @@ import numpy as np
 import pytest
 
 from conftest import shared_mesh
-from meshgen import bumpy_disk, grid
+from meshgen import bumpy_disk, grid, torus
 from uvbake.charts import check_chart, split_charts, topology
 from uvbake.errors import ChartError, InputError
 from uvbake.io import load_mesh
 from uvbake.segment import bisect, cut_to_disks, seam_length, split_where
-
-
-def torus(nu=32, nv=16, R=2.0, r=0.6):
-    idx = np.arange(nu * nv).reshape(nu, nv)
-    a, b = idx, np.roll(idx, -1, 0)
-    c, d = np.roll(b, -1, 1), np.roll(a, -1, 1)
-    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
-    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, nu, endpoint=False),
-                       np.linspace(0, 2 * np.pi, nv, endpoint=False), indexing="ij")
-    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1)
-    return V.reshape(-1, 3), F
 
 
 def sphere(subdiv=3):
@@ -79,7 +68,7 @@ def test_cut_to_disks_sphere_two_disks():
 
 
 def test_cut_to_disks_torus_all_parts_disks_with_holes():
-    V, F = torus()
+    V, F = torus(32, 16, r=0.6)
     lab = cut_to_disks(V, F)
     charts = _parts_valid(V, F, lab)
     assert 2 <= len(charts) <= 4
