@@ -77,7 +77,9 @@ def test_bad_input_is_one_line_and_exit_2(args, message, scene, tmp_path, capsys
     text = tmp_path / "notes.ply"
     text.write_text("this is not a mesh\n")
     nan = tmp_path / "nan.obj"
-    nan.write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
+    # one NaN vertex among many valid faces: an error, not a silent repair
+    nan.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 2 0 0\nv nan 1 0\n"
+                   "f 1 2 3\nf 2 4 3\nf 2 5 4\nf 5 6 4\n")
     fill = dict(scene=scene, tmp=tmp_path, empty=empty, text=text, nan=nan, text_name=text.name)
     args = [a.format(**fill) for a in args]
     before = {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}

@@ -124,6 +124,11 @@ def unwrap(source, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1
     t = time.perf_counter()
     mesh = load_mesh(source, face_labels=face_labels)
     V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
+    # NaN or infinite coordinates are corrupt data, not a reconstruction artefact: refuse them
+    # (naming the vertices) rather than silently dropping faces
+    from .charts import check_arrays
+
+    check_arrays(V, F, where=str(mesh.source))
     repair_report = None
     if repair:
         from .repair import repair as repair_mesh
