@@ -109,6 +109,22 @@ def unwrap(source, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1
     -------
     UnwrapResult
     """
+    from threadpoolctl import threadpool_limits
+
+    from .solvers.linalg import cholmod_available
+
+    cholmod_available()          # load CHOLMOD's BLAS first, so the limit below reaches it too
+    # One BLAS thread in every stage: charts are solved in parallel threads, and two BLAS pools
+    # spinning against each other on two cores cost camelhead's whole command 24.0 s against 20.6 s.
+    with threadpool_limits(limits=1):
+        return _unwrap(source, alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
+                       face_labels=face_labels, texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake,
+                       auto_cut=auto_cut, repair=repair, guarantee=guarantee, max_splits=max_splits,
+                       continuation=continuation, workers=workers, progress=progress, callback=callback)
+
+
+def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, texture_size_px, gutter_px, bake,
+            auto_cut, repair, guarantee, max_splits, continuation, workers, progress, callback):
     t0 = time.perf_counter()
     timings = {}
     alpha = _check_options(alpha, init, backend, tol, max_iter)
