@@ -13,7 +13,6 @@ $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends \
     libusb-1.0-0 libgl1 libegl1 libgomp1 libvulkan1 mesa-vulkan-drivers \
     libsuitesparse-dev libopenblas0-pthread build-essential >/dev/null
-python3 -m pip install -q --upgrade pip
 python3 -m pip install -q -c constraints.txt -e ".[cholmod,test]"
 # the Khronos glTF validator, used by the tests to check exported GLB files
 if ! command -v npm >/dev/null; then $SUDO apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null; fi
