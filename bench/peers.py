@@ -221,7 +221,7 @@ def run_method(method, V, F, charts):
         fn = PER_CHART_FN[method]
         C = np.zeros((len(F), 3, 2))
         t_total = 0.0
-        flips_solver = n_overlaps = n_overlaps_global = 0
+        n_overlaps = n_overlaps_global = 0
         extras = []
         offset = 0.0
         c_total = 0.0

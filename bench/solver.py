@@ -12,7 +12,6 @@ import platform
 import sys
 from pathlib import Path
 
-import numpy as np
 
 HERE = Path(__file__).resolve().parent
 MESHES = HERE.parent.parent / "shared" / "meshes"

@@ -1,10 +1,9 @@
 """uvbake_open3d: tensor and legacy Open3D meshes in, the same kind out, laid out as compute_uvatlas does."""
 
-import re
 
 import numpy as np
 import pytest
-from conftest import REPO, SAMPLE_SCENES
+from conftest import run_readme_example, SAMPLE_SCENES
 
 o3d = pytest.importorskip("open3d")
 import uvbake_open3d  # noqa: E402
@@ -130,19 +129,8 @@ def test_sample_scene_and_bad_input():
         uvbake_open3d.unwrap(o3d.geometry.PointCloud())
 
 
-def _run_example(code, tmp_path, monkeypatch):
-    (tmp_path / "sample_scenes").symlink_to(SAMPLE_SCENES)
-    monkeypatch.chdir(tmp_path)
-    scope = {}
-    exec(compile(code, "example", "exec"), scope)
-    return scope
-
-
 def test_readme_example(tmp_path, monkeypatch):
-    readme = (REPO / "README.md").read_text()
-    blocks = [b for b in re.findall(r"```python\n(.*?)```", readme, re.S) if "import uvbake_open3d" in b]
-    assert blocks, "README.md lost its uvbake_open3d example"
-    scope = _run_example(blocks[0], tmp_path, monkeypatch)
+    scope = run_readme_example("import uvbake_open3d", tmp_path, monkeypatch)
     assert isinstance(scope["mesh"], o3d.t.geometry.TriangleMesh)
     assert tuple(scope["uvs"].shape)[1:] == (3, 2) and scope["texture"].rows == 256
     assert (tmp_path / "scene_uv.obj").exists()

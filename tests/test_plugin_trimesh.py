@@ -1,10 +1,9 @@
 """uvbake_trimesh: a Trimesh in, a textured Trimesh out; seams survive trimesh's own writers and readers."""
 
-import re
 
 import numpy as np
 import pytest
-from conftest import REPO, SAMPLE_SCENES
+from conftest import run_readme_example, SAMPLE_SCENES
 
 trimesh = pytest.importorskip("trimesh")
 import uvbake_trimesh  # noqa: E402
@@ -97,19 +96,8 @@ def test_sample_scene_and_bad_input():
         uvbake_trimesh.unwrap(trimesh.Scene())
 
 
-def _run_example(code, tmp_path, monkeypatch):
-    (tmp_path / "sample_scenes").symlink_to(SAMPLE_SCENES)
-    monkeypatch.chdir(tmp_path)
-    scope = {}
-    exec(compile(code, "example", "exec"), scope)
-    return scope
-
-
 def test_readme_example(tmp_path, monkeypatch):
-    readme = (REPO / "README.md").read_text()
-    blocks = [b for b in re.findall(r"```python\n(.*?)```", readme, re.S) if "import uvbake_trimesh" in b]
-    assert blocks, "README.md lost its uvbake_trimesh example"
-    scope = _run_example(blocks[0], tmp_path, monkeypatch)
+    scope = run_readme_example("import uvbake_trimesh", tmp_path, monkeypatch)
     assert isinstance(scope["textured"].visual, trimesh.visual.TextureVisuals)
     assert (tmp_path / "disk_holes_uv.glb").exists()
     assert np.abs(uvbake_trimesh.corner_uv(scope["again"]) - uvbake_trimesh.corner_uv(scope["textured"])).max() < 1e-6

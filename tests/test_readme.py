@@ -4,17 +4,13 @@ import json
 import re
 import shlex
 
-from conftest import REPO
+from conftest import REPO, run_readme_example
 
 README = (REPO / "README.md").read_text()
 
 
 def test_python_example_runs(tmp_path, monkeypatch):
-    block = re.search(r"```python\n(.*?)```", README, re.S).group(1)
-    (tmp_path / "sample_scenes").symlink_to(REPO / "sample_scenes")
-    monkeypatch.chdir(tmp_path)
-    scope = {}
-    exec(compile(block, "README.md", "exec"), scope)
+    scope = run_readme_example("import uvbake\n", tmp_path, monkeypatch)
     assert scope["result"].converged and len(scope["results"]) == len(scope["charts"]) >= 2
     assert scope["atlas"].report["valid"] and scope["atlas"].image.shape == (512, 512, 3)
     assert (tmp_path / "scene_uv.glb").stat().st_size > 0

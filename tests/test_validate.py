@@ -10,8 +10,6 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-import uvbake
-from uvbake.errors import InputError
 from uvbake.validation import FLIPPED_RGB, OVERLAP_RGB, validate
 
 # --------------------------------------------------------------------------------------------------

@@ -182,7 +182,6 @@ def _weld(V, F, weld_tol):
 
 def _nonmanifold(V, F, n):
     """Split non-manifold edges and bowtie vertices; returns (vertex_of_corner (3m,), nm_edges, bowties)."""
-    m = len(F)
     he, key = _edge_keys(F, n)
     order = np.argsort(key, kind="stable")
     ks = key[order]

@@ -45,7 +45,6 @@ def _dual_edges(F, n):
     ea, eb : (d,) int arrays   the shared edge's vertices
     hi, hj : (d,) int arrays   the corner (3 f + k) at which each triangle's half-edge starts
     """
-    m = len(F)
     he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     key = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])
     order = np.argsort(key, kind="stable")
@@ -70,7 +69,6 @@ def _corner_fans(F, n, i, j):
     """
     m = len(F)
     va = F.ravel()
-    vb = F[:, [1, 2, 0]].ravel()
     nxt = (np.arange(3 * m) // 3) * 3 + (np.arange(3 * m) % 3 + 1) % 3
     # half-edge h runs from corner h to corner nxt[h]; match the corners of i and j by vertex
     same_dir = va[j] == va[i]

@@ -148,7 +148,6 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
             if actual > 0 and (rho > 0 or reason.startswith("backtracked")):
                 accepted = True
                 x = x_new
-                f_prev = f
                 f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
                 gnorm = float(np.linalg.norm(g))
                 lam = max(lam * max(MIN_SHRINK, 1.0 - (2.0 * rho - 1.0) ** 3), lam_min,
