@@ -24,10 +24,10 @@ SUBCOMMANDS = {"check": "uvbake.check", "sweep": "uvbake.sweep_cli"}
 def _parser():
     p = argparse.ArgumentParser(
         prog="uvbake",
-        description="Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle "
-                    "distortion minimiser (Levenberg-Marquardt), split charts until no triangle is flipped "
-                    "or overlapping, pack them, bake a texture and write the textured mesh and a report. "
-                    "Charts come from a per-face segment label (PLY face property 'segment', 'label', ...) "
+        description="Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle\n"
+                    "distortion minimiser (Levenberg-Marquardt), split charts until no triangle is flipped\n"
+                    "or overlapping, pack them, bake a texture and write the textured mesh and a report.\n"
+                    "Charts come from a per-face segment label (PLY face property 'segment', 'label', ...)\n"
                     "and connected components.",
         epilog="examples:\n"
                "  uvbake scene.ply --alpha 0.5 --bake checker.png\n"
