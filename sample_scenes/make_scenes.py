@@ -24,6 +24,8 @@ import math
 from pathlib import Path
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay
 
 SEED = 20240611
@@ -142,19 +144,9 @@ def topology(F):
 
 
 def _components(n, E):
-    parent = np.arange(n)
-
-    def find(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for a, b in E.tolist():
-        ra, rb = find(a), find(b)
-        if ra != rb:
-            parent[ra] = rb
-    return len({find(i) for i in range(n)})
+    """Number of connected components of the graph on n vertices with edges E (k,2)."""
+    graph = sparse.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[0]
 
 
 def min_angle_deg(V, F):
@@ -305,8 +297,6 @@ def _labels_by_crease(P, F, creases, seeds):
 
     Pieces are numbered by the seed point that lies in them; every piece must hold exactly one seed.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
 
     half = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     face = np.tile(np.arange(len(F)), 3)
@@ -318,7 +308,7 @@ def _labels_by_crease(P, F, creases, seeds):
     cut = np.zeros(len(a), bool)                                   # both ends on one crease piece
     for s, t in creases:
         cut |= (_point_segment_distance(P[a], s, t) < 1e-9) & (_point_segment_distance(P[b], s, t) < 1e-9)
-    graph = coo_matrix((np.ones(int((~cut).sum())), (fa[~cut], fb[~cut])), shape=(len(F), len(F)))
+    graph = sparse.coo_matrix((np.ones(int((~cut).sum())), (fa[~cut], fb[~cut])), shape=(len(F), len(F)))
     n, piece = connected_components(graph, directed=False)
     centroids = P[F].mean(axis=1)
     seed_piece = [piece[np.argmin(np.linalg.norm(centroids - np.asarray(q), axis=1))] for q in seeds]
@@ -506,19 +496,9 @@ def build(name):
 def _component_faces(F):
     """Face index lists of the connected components, ordered by smallest face index."""
     n = F.max() + 1
-    parent = np.arange(n)
-
-    def find(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for a, b, c in F.tolist():
-        ra, rb, rc = find(a), find(b), find(c)
-        parent[ra] = rc
-        parent[rb] = rc
-    roots = np.array([find(i) for i in range(n)])[F[:, 0]]
+    E = np.vstack([F[:, [0, 1]], F[:, [1, 2]]])
+    graph = sparse.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
+    roots = connected_components(graph, directed=False)[1][F[:, 0]]
     _, first, inv = np.unique(roots, return_index=True, return_inverse=True)
     order = np.argsort(first)
     return [F[inv == k] for k in order]
