@@ -93,8 +93,8 @@ def main(argv=None):
     storages = [None] if not args.storage else [int(s) for s in args.storage.split(",")]
     print(f"tol {args.tol:g}, lscm starts, L-BFGS budget {args.budget:g} s per chart"
           + (", LM with strict positive-definiteness check" if args.strict_pd else ""))
-    hdr = (f"| mesh | alpha | backend | iterations | evaluations | time (s) | F* | grad norm | stop | local min "
-           f"| F* rel. diff to LM |")
+    hdr = ("| mesh | alpha | backend | iterations | evaluations | time (s) | F* | grad norm | stop | local min "
+           "| F* rel. diff to LM |")
     print(hdr)
     print("|---|---:|---|---:|---:|---:|---:|---:|---|---|---:|")
     for name in args.meshes.split(","):

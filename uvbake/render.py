@@ -136,15 +136,10 @@ def _inputs(source, F, corner_uv, image):
 
 
 def save_png(path, img):
-    """Write an RGB uint8 image as PNG, atomically."""
-    from PIL import Image
+    """Write an RGB uint8 image as PNG, atomically (see :func:`uvbake.export.save_png`)."""
+    from .export import save_png as _save_png
 
-    from .io import atomic_write
-
-    path = Path(path)
-    with atomic_write(path, "wb") as fh:
-        Image.fromarray(np.asarray(img, dtype=np.uint8)).save(fh, format="PNG")
-    return path
+    return _save_png(path, np.asarray(img, dtype=np.uint8))
 
 
 def cameras(V, views=DEFAULT_VIEWS):

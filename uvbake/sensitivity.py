@@ -38,8 +38,6 @@ alpha's solution; the record of each alpha says where it started (``started_from
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 
@@ -460,20 +458,10 @@ def _num(v):
 
 
 def _atomic_write(path, data: bytes):
-    """Write ``data`` to ``path`` through a temporary file in the same folder and os.replace."""
-    path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise InputError(f"cannot write {path}: folder {folder} does not exist; create it or pick another path")
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".uvbake-", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    """Write ``data`` to ``path`` atomically (see :func:`uvbake.io.atomic_write`)."""
+    from .io import atomic_write
+
+    with atomic_write(path, "wb") as fh:
+        fh.write(data)
+
+

@@ -22,9 +22,7 @@ uvbake is enough::
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -172,18 +170,12 @@ def _write_png(path: Path, img: np.ndarray):
     """Write atomically (a temporary file in the same folder, then rename)."""
     from PIL import Image
 
+    from uvbake.io import atomic_write
+
     path.parent.mkdir(parents=True, exist_ok=True)
     arr = img[:, :, 0] if img.shape[2] == 1 else img
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            Image.fromarray(arr).save(fh, format="PNG", optimize=False, compress_level=9)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_write(path, "wb") as fh:
+        Image.fromarray(arr).save(fh, format="PNG", optimize=False, compress_level=9)
 
 
 def _remove(*paths):
