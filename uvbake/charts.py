@@ -196,7 +196,7 @@ def nonmanifold_vertices(F, n):
     return np.flatnonzero(counts > 1)
 
 
-def face_adjacency(F, n_vertices=None):
+def face_adjacency(F, n_vertices=None, *, return_halfedges=False):
     """Pairs of faces sharing an edge, and that edge.
 
     Returns
@@ -206,6 +206,8 @@ def face_adjacency(F, n_vertices=None):
         consecutive pair of its faces).
     edges : (k,2) int array
         The shared edge's vertices, sorted.
+    hi, hj : (k,) int arrays, with ``return_halfedges``
+        The half-edge of each face along that edge, as ``3 f + k`` (from corner k to k+1).
     """
     F = np.asarray(F, dtype=np.int64)
     n = int(F.max()) + 1 if n_vertices is None else n_vertices
@@ -214,6 +216,8 @@ def face_adjacency(F, n_vertices=None):
     order = np.argsort(ek, kind="stable")
     same = np.flatnonzero(ek[order][1:] == ek[order][:-1])
     i, j = order[same], order[same + 1]
+    if return_halfedges:
+        return i // 3, j // 3, key[i], i, j
     return i // 3, j // 3, key[i]
 
 

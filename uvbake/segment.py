@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
-from .charts import _list, check_arrays, topology
+from .charts import _list, check_arrays, face_adjacency, topology
 from .errors import ChartError, InputError
 
 __all__ = ["bisect", "split_where", "cut_to_disks", "seam_length"]
@@ -37,21 +37,10 @@ MIN_FRACTION = 0.1
 
 # ------------------------------------------------------------------------------------------ graphs
 def _dual_edges(F, n):
-    """Pairs of triangles sharing an edge.
-
-    Returns
-    -------
-    fi, fj : (d,) int arrays   the two triangles (an edge of k > 2 triangles gives a chain of k-1 pairs)
-    ea, eb : (d,) int arrays   the shared edge's vertices
-    hi, hj : (d,) int arrays   the corner (3 f + k) at which each triangle's half-edge starts
-    """
-    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    same = np.flatnonzero(ks[1:] == ks[:-1])
-    i, j = order[same], order[same + 1]
-    return i // 3, j // 3, he[i, 0], he[i, 1], i, j
+    """Pairs of triangles sharing an edge: (fi, fj, ea, eb, hi, hj), see
+    :func:`uvbake.charts.face_adjacency` (ea, eb: the shared edge's vertices)."""
+    fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
+    return fi, fj, e[:, 0], e[:, 1], hi, hj
 
 
 def _corner_fans(F, n, i, j):
