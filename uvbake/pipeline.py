@@ -302,22 +302,17 @@ def _invalid_faces(chart, result):
     from .validation import validate
 
     rep = validate(result.uv, chart.F, chart_ids=np.zeros(len(chart.F), np.int64), resolution_px=1024)
-    det = _dets(chart, result)
+    det = _dets(chart, result.uv)
     bad = set(np.flatnonzero(det <= 0).tolist()) | set(np.asarray(rep.flipped).tolist())
     bad |= set(np.asarray(rep.overlap_pairs).ravel().tolist())
     return np.array(sorted(bad), dtype=np.int64), rep
 
 
-class _Uv:
-    def __init__(self, uv):
-        self.uv = uv
-
-
-def _dets(chart, result):
+def _dets(chart, uv):
     from .energy import jacobians, triangle_frames
 
     _, Q, _ = triangle_frames(chart.V, chart.F)
-    return np.linalg.det(jacobians(Q, chart.F, result.uv))
+    return np.linalg.det(jacobians(Q, chart.F, uv))
 
 
 def _split_until_valid(charts, results, options, *, max_splits, workers, note):
@@ -342,7 +337,7 @@ def _split_until_valid(charts, results, options, *, max_splits, workers, note):
                 # warm start from the parent's map where its restriction has nothing flipped
                 # (the split moved the bad region away from this part); otherwise a fresh start
                 uv = results[i].uv[loc]
-                starts.append(uv if np.all(_dets(p, _Uv(uv)) > 0) else None)
+                starts.append(uv if np.all(_dets(p, uv) > 0) else None)
             splits.append(dict(chart=c.name, faces=int(len(c.F)), flipped=int(len(rep.flipped)),
                                overlapping_pairs=int(len(rep.overlap_pairs)), parts=len(parts),
                                seam_length=_seam_length(c, sub)))
