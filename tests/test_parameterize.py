@@ -40,9 +40,10 @@ def test_history_never_increases_on_accepted_steps():
     r = parameterize(V, F, alpha=0.7, init="lscm", callback=lambda d: seen.append(d))
     assert r.converged
     assert len(r.history) == r.iterations + 1
-    assert np.all(np.diff(r.history) <= 0)
+    h = np.asarray(r.history)
+    assert np.all(np.diff(h) <= 1e-12 * np.abs(h[:-1]))      # rounding of the recorded totals only
     accepted = [d for d in seen if d["accepted"]]
-    assert accepted and all(b["energy"] <= a["energy"] for a, b in zip(accepted, accepted[1:]))
+    assert accepted and all(b["energy"] <= a["energy"] * (1 + 1e-12) for a, b in zip(accepted, accepted[1:]))
     assert r.energy == pytest.approx(DistortionEnergy(V, F, alpha=0.7).value(r.uv), rel=1e-12)
     assert r.energy < r.energy_init
 
@@ -52,7 +53,10 @@ def test_random_start_without_continuation_runs_the_papers_plain_lm():
     plain = parameterize(V, F, alpha=0.5, init="random", seed=1, continuation=False)
     cont = parameterize(V, F, alpha=0.5, init="random", seed=1)
     assert "continuation" not in plain.extra and cont.extra["continuation"]["alpha"] == 0.1
-    assert np.all(np.diff(plain.history) <= 0) and np.all(np.diff(cont.history) <= 0)
+    # accepted LM steps never raise F; the recorded totals may differ by rounding (another CPU's
+    # summation order), so a rise of 1e-12 of F is allowed
+    for h in (np.asarray(plain.history), np.asarray(cont.history)):
+        assert np.all(np.diff(h) <= 1e-12 * np.abs(h[:-1]))
     assert cont.energy <= plain.energy * (1 + 1e-9)
 
 
