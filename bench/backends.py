@@ -32,7 +32,7 @@ MESHES = REPO.parent / "shared" / "meshes"
 
 
 def strict_pd_patch():
-    from uvbake.solvers import linalg
+    from uvbake.flatten.solvers import linalg
 
     original = linalg.CholmodSolver.factor
 
@@ -46,8 +46,8 @@ def strict_pd_patch():
 
 def solve_mesh(path, alpha, backend, *, tol, max_iter, budget_s, storage=None):
     import uvbake
-    from uvbake.crosscheck import is_local_minimum
-    import uvbake.solvers.lbfgs as lb
+    from uvbake.analysis.crosscheck import is_local_minimum
+    import uvbake.flatten.solvers.lbfgs as lb
 
     if storage is not None:
         lb.VECTOR_STORAGE = storage

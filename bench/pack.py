@@ -27,7 +27,7 @@ sys.path.insert(0, str(REPO))
 
 import uvbake  # noqa: E402
 from uvbake.errors import InputError  # noqa: E402
-from uvbake.pack import min_chart_distance, pack_charts  # noqa: E402
+from uvbake.atlas.pack import min_chart_distance, pack_charts  # noqa: E402
 
 SHARED = REPO.parent / "shared" / "meshes"
 
@@ -44,7 +44,7 @@ def scene(path):
 
 def kmeans_pieces(path, k, seed=0):
     """Cut a mesh into about ``k`` charts by k-means (Lloyd, 20 rounds) on face centroids."""
-    from uvbake.charts import check_chart
+    from uvbake.mesh.charts import check_chart
     from uvbake.errors import ChartError
 
     m = uvbake.load_mesh(path)

@@ -103,7 +103,7 @@ def load_case(name):
 
 
 def _pins(V, F):
-    from uvbake.init import farthest_boundary_pair
+    from uvbake.flatten.starts import farthest_boundary_pair
 
     p, q = farthest_boundary_pair(V, F)
     return p, q
@@ -383,7 +383,7 @@ def plot(records, cases, methods, path):
 
 def machine():
     try:
-        from uvbake.solvers.linalg import cholmod_available
+        from uvbake.flatten.solvers.linalg import cholmod_available
         lin = "CHOLMOD" if cholmod_available() else "SuperLU"
     except Exception:  # pragma: no cover
         lin = "?"

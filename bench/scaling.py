@@ -74,7 +74,7 @@ def child(method, k, alpha, max_iter):
     rec = dict(method=method, k=k, vertices=len(V), triangles=len(F))
     if method == "lm":
         import uvbake
-        from uvbake.solvers.linalg import cholmod_available
+        from uvbake.flatten.solvers.linalg import cholmod_available
 
         cholmod_available()
         stamps, cpu = [], []
@@ -98,7 +98,7 @@ def child(method, k, alpha, max_iter):
     elif method == "slim":
         import igl
         from threadpoolctl import threadpool_limits  # noqa: F401  (igl uses Eigen's own threads)
-        from uvbake.init import lscm
+        from uvbake.flatten.starts import lscm
 
         uv0 = lscm(V, F)
         base = _rss_mb()
@@ -111,7 +111,7 @@ def child(method, k, alpha, max_iter):
         rec["cpu_s"] = time.process_time() - c0
     elif method == "lscm":
         import igl
-        from uvbake.init import farthest_boundary_pair
+        from uvbake.flatten.starts import farthest_boundary_pair
 
         p, q = farthest_boundary_pair(V, F)
         b = np.array([p, q], dtype=np.int64)

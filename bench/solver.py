@@ -28,7 +28,7 @@ def main():
         sys.exit(f"bench/solver.py: {MESHES} not found; the research meshes live beside the checkout")
     import uvbake
     from uvbake.io import load_mesh
-    from uvbake.solvers.linalg import cholmod_available
+    from uvbake.flatten.solvers.linalg import cholmod_available
 
     print(f"# uvbake LM solver, {platform.processor() or platform.machine()}, "
           f"linear solver {'CHOLMOD' if cholmod_available() else 'SuperLU'}\n")

@@ -5,7 +5,7 @@ import pytest
 
 pytest.importorskip("open3d")
 
-from uvbake.bake import (DEFAULT_DILATE_PX, bake_checker, bake_vertex_colors, dilate,  # noqa: E402
+from uvbake.atlas.bake import (DEFAULT_DILATE_PX, bake_checker, bake_vertex_colors, dilate,  # noqa: E402
                          dilate_px_for_mips)
 from uvbake.errors import InputError  # noqa: E402
 
@@ -289,7 +289,7 @@ def test_vertex_colors_rejects_wrong_shape():
 
 
 def test_tiled_bake_matches_one_open3d_call():
-    from uvbake.bake import bake_corner_attribute
+    from uvbake.atlas.bake import bake_corner_attribute
     V, F, uv, chart = two_chart_grid(n=6)
     values = np.concatenate([uv, V[F][:, :, :1]], axis=-1)  # (m,3,3): u, v, x
     whole = bake_corner_attribute(uv, values, 96, tile_px=96)

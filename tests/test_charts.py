@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import uvbake
-from uvbake.charts import check_chart, nonmanifold_vertices, split_charts, topology
+from uvbake.mesh.charts import check_chart, nonmanifold_vertices, split_charts, topology
 from meshgen import bumpy_disk, grid, torus
 
 

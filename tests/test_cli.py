@@ -41,7 +41,7 @@ def test_unwrap_scene_writes_textured_mesh_and_report(scene, tmp_path, capsys):
     # packing only rotates, translates and scales each chart by the common scale: undoing the scale
     # must give back each chart's energy (F is invariant under rotation and translation)
     import uvbake
-    from uvbake.energy import DistortionEnergy
+    from uvbake.flatten.energy import DistortionEnergy
 
     charts = uvbake.split_charts(mesh.V, mesh.F, uvbake.load_mesh(scene).face_labels)
     scale = report["atlas"]["scale"]

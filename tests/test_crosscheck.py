@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from conftest import SAMPLE_SCENES, shared_mesh
-from uvbake.charts import split_charts
-from uvbake.crosscheck import CrossCheckError, cross_check, cross_check_charts, rigid_align, uv_diameter
-from uvbake.energy import DistortionEnergy
+from uvbake.mesh.charts import split_charts
+from uvbake.analysis.crosscheck import CrossCheckError, cross_check, cross_check_charts, rigid_align, uv_diameter
+from uvbake.flatten.energy import DistortionEnergy
 from uvbake.errors import SolverError
 from uvbake.io import load_mesh
 
@@ -71,7 +71,7 @@ def _lm_saddle_bug():
     try:
         import scipy.sparse as sp
 
-        from uvbake.solvers.linalg import NotPositiveDefinite, make_solver
+        from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
     except ImportError:
         return False
     A = sp.csc_matrix(np.array([[1.0, 0.0], [0.0, -1.0]]))

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from uvbake.energy import DistortionEnergy, jacobians, optimal_scale, triangle_frames
+from uvbake.flatten.energy import DistortionEnergy, jacobians, optimal_scale, triangle_frames
 from meshgen import bumpy_disk, plane
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from uvbake import export as export_mod
 from uvbake.errors import InputError
-from uvbake.export import load_textured_uv, save_textured, split_corners
+from uvbake.io.export import load_textured_uv, save_textured, split_corners
 
 GLTF_VALIDATOR_VERSION = "2.0.0-dev.3.10"
 NODE_PREFIX_DEFAULT = Path.home() / ".cache" / "uvbake" / "node"
@@ -297,7 +297,7 @@ def test_pil_image_and_rgba(tmp_path):
 
 def test_save_png(tmp_path, monkeypatch):
     from PIL import Image
-    from uvbake.export import save_png
+    from uvbake.io.export import save_png
     _, _, _, image, _ = seam_mesh()
     path = save_png(tmp_path / "t.png", image)
     assert np.array_equal(np.asarray(Image.open(path)), image)

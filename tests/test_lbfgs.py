@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 import uvbake
-from uvbake.energy import DistortionEnergy, optimal_scale
-from uvbake.init import initial_map
-from uvbake.solvers.lbfgs import lbfgs
-from uvbake.solvers.lm import levenberg_marquardt
+from uvbake.flatten.energy import DistortionEnergy, optimal_scale
+from uvbake.flatten.starts import initial_map
+from uvbake.flatten.solvers.lbfgs import lbfgs
+from uvbake.flatten.solvers.lm import levenberg_marquardt
 
 pytest.importorskip("nlopt")
 
@@ -59,7 +59,7 @@ def test_same_minimum_as_levenberg_marquardt():
     assert i_lm["converged"] and i_lb["converged"]
     assert i_lb["energy"] == pytest.approx(i_lm["energy"], rel=1e-10)
     # F is invariant to rigid motions only; after removing them the maps coincide
-    from uvbake.crosscheck import rigid_align
+    from uvbake.analysis.crosscheck import rigid_align
 
     uv_lm, uv_lb = energy.to_uv(x_lm, start), energy.to_uv(x_lb, start)
     _, _, al = rigid_align(uv_lb, uv_lm)

@@ -1,6 +1,6 @@
 """Chart packing: shapes, scale, orientation, gutters, rotation, efficiency, corner UVs, errors.
 
-Geometric checks here are independent of uvbake.pack: the distance between two charts is computed as
+Geometric checks here are independent of uvbake.atlas.pack: the distance between two charts is computed as
 the minimum over the vertices of each of the distance to the other's triangles (0 inside), with a
 separate test for crossing edges, which is exact for planar triangle sets.
 """
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from uvbake.errors import InputError
-from uvbake.pack import corner_uvs, min_chart_distance, pack_charts
+from uvbake.atlas.pack import corner_uvs, min_chart_distance, pack_charts
 
 # ------------------------------------------------------------------------------------------ helpers
 
@@ -90,7 +90,7 @@ def edges_cross(uv1, F1, uv2, F2):
 
 
 def min_gap(uvs, faces):
-    """Exact minimum distance between triangles of different charts, independent of uvbake.pack."""
+    """Exact minimum distance between triangles of different charts, independent of uvbake.atlas.pack."""
     best = np.inf
     for i in range(len(uvs)):
         for j in range(i + 1, len(uvs)):

@@ -5,8 +5,8 @@ import pytest
 
 import uvbake
 from uvbake import parameterize, parameterize_charts
-from uvbake.energy import DistortionEnergy, jacobians, triangle_frames
-from uvbake.init import lscm, random_map, tutte
+from uvbake.flatten.energy import DistortionEnergy, jacobians, triangle_frames
+from uvbake.flatten.starts import lscm, random_map, tutte
 from conftest import shared_mesh
 from meshgen import bumpy_disk, cone, cut_cylinder, plane
 
@@ -94,7 +94,7 @@ def test_initial_maps():
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, random_map(V, F, seed=2))
     # Tutte puts the boundary on a circle whose circumference is the boundary's length
-    from uvbake.charts import topology
+    from uvbake.mesh.charts import topology
 
     bnd = np.unique(topology(F).boundary_edges)
     rad = np.linalg.norm(tutte(V, F)[bnd], axis=1)
@@ -174,7 +174,7 @@ def test_lm_escapes_a_saddle_and_ends_at_a_local_minimum(continuation):
 def test_halftunnel_alpha_05_ends_at_a_minimum_not_a_saddle():
     # found by the L-BFGS cross-check: with an L D L^T factorisation that accepted indefinite
     # matrices, LM stopped at a saddle with F 102.72 and two negative Hessian eigenvalues
-    from uvbake.crosscheck import is_local_minimum
+    from uvbake.analysis.crosscheck import is_local_minimum
     from uvbake.io import load_mesh
 
     m = load_mesh(shared_mesh("halftunnel.off"))

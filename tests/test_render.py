@@ -36,14 +36,14 @@ def _passes(image, golden):
 
 @pytest.fixture(scope="module")
 def scene():
-    from uvbake.pipeline import unwrap
+    from uvbake.atlas.pipeline import unwrap
 
     return unwrap(SAMPLE_SCENES / "scene.ply", texture_size_px=SIZE, bake="vertex-colors")
 
 
 @pytest.fixture(scope="module")
 def scene_checker(scene):
-    from uvbake.bake import bake_checker
+    from uvbake.atlas.bake import bake_checker
 
     return bake_checker(scene.V, scene.F, scene.corner_uv, texture_size_px=SIZE,
                         texel_size_world=scene.report["atlas"]["texel_size_world"])
@@ -75,7 +75,7 @@ def test_scene_preview_golden(scene_preview, texture_regression):
 
 
 def test_multi_component_golden(texture_regression):
-    from uvbake.pipeline import unwrap
+    from uvbake.atlas.pipeline import unwrap
 
     r = unwrap(SAMPLE_SCENES / "multi_component.ply", texture_size_px=SIZE, bake="checker")
     assert r.report["valid"]
@@ -88,7 +88,7 @@ def test_multi_component_golden(texture_regression):
 
 def _moved(scene, chart, texels):
     """Vertex-colour texture rebaked with one chart translated by ``texels`` in u (inward)."""
-    from uvbake.bake import bake_vertex_colors
+    from uvbake.atlas.bake import bake_vertex_colors
 
     cuv = scene.corner_uv.copy()
     sel = scene.chart_ids == chart

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from meshgen import bumpy_disk, grid
-from uvbake.charts import check_chart, nonmanifold_vertices, split_charts, topology
+from uvbake.mesh.charts import check_chart, nonmanifold_vertices, split_charts, topology
 from uvbake.errors import InputError
-from uvbake.repair import repair
+from uvbake.mesh.repair import repair
 
 
 def _edge_counts(F):

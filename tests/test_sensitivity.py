@@ -10,8 +10,8 @@ import uvbake
 from conftest import SAMPLE_SCENES
 from uvbake.errors import InputError
 from uvbake.io import load_mesh
-from uvbake.sensitivity import finite_difference, parse_alphas, relative_sensitivity, sweep
-from uvbake.sweep_cli import main
+from uvbake.analysis.sensitivity import finite_difference, parse_alphas, relative_sensitivity, sweep
+from uvbake.cli.sweep import main
 
 
 def cylinder_patch(nu=14, nv=8, angle=1.6):

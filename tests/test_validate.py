@@ -10,7 +10,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from uvbake.validation import FLIPPED_RGB, OVERLAP_RGB, validate
+from uvbake.validate.core import FLIPPED_RGB, OVERLAP_RGB, validate
 
 # --------------------------------------------------------------------------------------------------
 # fixtures and the oracle
@@ -186,7 +186,7 @@ def test_touching_triangles_that_snapping_makes_both_claim_a_pixel_are_not_overl
     # passes 1e-4 px from a pixel centre; snapping to 1/256 px moves T1's edge across that centre, so
     # the raster sees a pixel claimed twice. The exact pass must reject the pair and the pixel must
     # not count as overlap nor be drawn red.
-    import uvbake.validation as module
+    import uvbake.validate.core as module
 
     R = 64
     spurious = 0
@@ -495,7 +495,7 @@ def test_overlap_image_has_strong_colours_where_expected(tmp_path):
 
 def test_massive_overlap_stops_at_the_work_budget_and_is_never_valid(monkeypatch):
     # "reset" UVs: every quad mapped onto the whole texture; with small budgets the check stops
-    import uvbake.validation as module
+    import uvbake.validate.core as module
 
     sq = np.array([[[0, 0], [1, 0], [1, 1]], [[0, 0], [1, 1], [0, 1]]], float)
     uv = np.tile(sq, (20, 1, 1))
@@ -520,7 +520,7 @@ def test_massive_overlap_stops_at_the_work_budget_and_is_never_valid(monkeypatch
 
 
 def test_uvbake_validate_is_the_function_even_after_importing_the_module():
-    import uvbake.validation  # noqa: F401
+    import uvbake.validate.core  # noqa: F401
 
     V, F = grid(2)
     assert uvbake.validate(V, F, resolution_px=32).valid

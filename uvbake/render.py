@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, UvbakeError
+from uvbake.errors import InputError, UvbakeError
 
 
 class RenderError(UvbakeError, RuntimeError):
@@ -67,7 +67,7 @@ def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=25
     Parameters
     ----------
     source : UnwrapResult or (n,3) float array
-        An :class:`uvbake.pipeline.UnwrapResult` (then ``F``, ``corner_uv``, ``image`` come from it) or
+        An :class:`uvbake.atlas.pipeline.UnwrapResult` (then ``F``, ``corner_uv``, ``image`` come from it) or
         the vertex positions ``V``.
     F : (m,3) int array
     corner_uv : (m,3,2) float array
@@ -136,8 +136,8 @@ def _inputs(source, F, corner_uv, image):
 
 
 def save_png(path, img):
-    """Write an RGB uint8 image as PNG, atomically (see :func:`uvbake.export.save_png`)."""
-    from .export import save_png as _save_png
+    """Write an RGB uint8 image as PNG, atomically (see :func:`uvbake.io.export.save_png`)."""
+    from uvbake.io.export import save_png as _save_png
 
     return _save_png(path, np.asarray(img, dtype=np.uint8))
 

@@ -4,7 +4,7 @@ Registered through the ``pytest11`` entry point ``uvbake = "pytest_uvbake.plugin
 uvbake is enough::
 
     def test_atlas(texture_regression):
-        result = uvbake.pipeline.unwrap("scene.ply", texture_size_px=256, bake="checker")
+        result = uvbake.atlas.pipeline.unwrap("scene.ply", texture_size_px=256, bake="checker")
         texture_regression.check(result.image, name="scene_checker")   # tests/goldens/scene_checker.png
 
 - Golden: ``<folder of the test file>/<uvbake_goldens_dir>/<name>.png`` (ini option, default

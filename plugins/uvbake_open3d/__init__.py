@@ -38,12 +38,12 @@ def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", r
     ----------
     mesh : open3d.t.geometry.TriangleMesh or open3d.geometry.TriangleMesh
     alpha, texture_size_px, gutter_px, **options
-        As in :func:`uvbake.pipeline.unwrap` (``init``, ``backend``, ``face_labels``, ``workers``, ...).
+        As in :func:`uvbake.atlas.pipeline.unwrap` (``init``, ``backend``, ``face_labels``, ``workers``, ...).
     bake : {"auto", "checker", "vertex-colors", None}
         ``"auto"``: the vertex colours when the mesh has them, else a checker. ``None``: UVs only, a
         plain white texture.
     return_result : bool
-        Also return the :class:`uvbake.pipeline.UnwrapResult`.
+        Also return the :class:`uvbake.atlas.pipeline.UnwrapResult`.
 
     Returns
     -------
@@ -52,7 +52,7 @@ def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", r
     import open3d as o3d
 
     from uvbake.errors import InputError
-    from uvbake.pipeline import unwrap as _unwrap
+    from uvbake.atlas.pipeline import unwrap as _unwrap
 
     tensor = isinstance(mesh, o3d.t.geometry.TriangleMesh)
     if not tensor and not isinstance(mesh, o3d.geometry.TriangleMesh):

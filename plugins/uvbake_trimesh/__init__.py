@@ -34,12 +34,12 @@ def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", r
     mesh : trimesh.Trimesh
         Not modified. Per-face segment labels may be given as ``face_labels=``.
     alpha, texture_size_px, gutter_px, **options
-        As in :func:`uvbake.pipeline.unwrap` (``init``, ``backend``, ``face_labels``, ``workers``, ...).
+        As in :func:`uvbake.atlas.pipeline.unwrap` (``init``, ``backend``, ``face_labels``, ``workers``, ...).
     bake : {"auto", "checker", "vertex-colors", None}
         ``"auto"``: the vertex colours when the mesh has them, else a checker. ``None``: a plain white
         texture (UVs only).
     return_result : bool
-        Also return the :class:`uvbake.pipeline.UnwrapResult` (report, charts, solver records).
+        Also return the :class:`uvbake.atlas.pipeline.UnwrapResult` (report, charts, solver records).
 
     Returns
     -------
@@ -50,7 +50,7 @@ def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", r
     import trimesh
 
     from uvbake.errors import InputError
-    from uvbake.pipeline import unwrap as _unwrap
+    from uvbake.atlas.pipeline import unwrap as _unwrap
 
     if not isinstance(mesh, trimesh.Trimesh):
         raise InputError(f"uvbake_trimesh.unwrap takes a trimesh.Trimesh, got {type(mesh).__name__}; "
@@ -73,7 +73,7 @@ def to_trimesh(result):
     import trimesh
     from PIL import Image
 
-    from uvbake.export import split_corners
+    from uvbake.io.export import split_corners
 
     source, uv, F_new = split_corners(result.F, result.corner_uv)
     image = result.image

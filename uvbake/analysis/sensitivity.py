@@ -25,7 +25,7 @@ Properties worth knowing when reading the plot:
 * F*(alpha) = min_U [alpha A(U) + (1 - alpha) C(U)] is a minimum of functions affine in alpha, hence
   concave (for the global minimum); with F*(0+) >= 0 that gives S <= 1.
 * At alpha = 0 only the conformal term is left and its infimum is the collapsed map; uvbake then
-  returns the pinned conformal map at the surface's own scale (see :mod:`uvbake.parameterization`),
+  returns the pinned conformal map at the surface's own scale (see :mod:`uvbake.flatten.solve`),
   so F*(0) is *not* the limit of F*(alpha) as alpha -> 0+. S(0) = 0 by the alpha factor of Eq. 10;
   the derivative reported at alpha = 0 is the one-sided difference, flagged in ``notes``.
 * For small alpha > 0 the optimum can be the collapsed map (all UVs nearly equal, F* = alpha * m):
@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError
+from uvbake.errors import InputError
 
 #: F* under this (times the number of triangles) is zero to rounding: S is then undefined (NaN).
 ZERO_ENERGY = 1e-12
@@ -294,7 +294,7 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
     alphas : sequence of floats in [0, 1]
         Sorted and de-duplicated before solving.
     labels : (m,) int array, optional
-        Per-face segment labels (see :func:`uvbake.charts.split_charts`).
+        Per-face segment labels (see :func:`uvbake.mesh.charts.split_charts`).
     init : {"lscm", "tutte", "random"}
         Start of every solve (of the first one with ``warm_start``).
     warm_start : bool
@@ -310,8 +310,8 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
     -------
     SweepResult
     """
-    from . import parameterize
-    from .charts import split_charts
+    from uvbake import parameterize
+    from uvbake.mesh.charts import split_charts
 
     alphas = check_alphas(alphas)
     charts = split_charts(V, F, labels)
@@ -337,7 +337,7 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
         uv_area = 0.0
         n_over = 0 if validate is not None else None
         for c, r in zip(charts, results):
-            from .energy import DistortionEnergy
+            from uvbake.flatten.energy import DistortionEnergy
 
             e = DistortionEnergy(c.V, c.F, alpha=float(alpha))
             da, dg = e.per_triangle(r.uv)
@@ -404,7 +404,7 @@ def _validator():
     """uvbake's bijectivity check (module ``validation``, formerly ``validate``), or None."""
     import importlib
 
-    for mod in ("uvbake.validation", "uvbake.validate"):
+    for mod in ("uvbake.validate.core", "uvbake.validate"):
         try:
             fn = getattr(importlib.import_module(mod), "validate")
         except (ImportError, AttributeError):
@@ -459,7 +459,7 @@ def _num(v):
 
 def _atomic_write(path, data: bytes):
     """Write ``data`` to ``path`` atomically (see :func:`uvbake.io.atomic_write`)."""
-    from .io import atomic_write
+    from uvbake.io import atomic_write
 
     with atomic_write(path, "wb") as fh:
         fh.write(data)

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError
+from uvbake.errors import InputError
 
 __all__ = ["validate", "ValidationReport", "ChartVerdict"]
 
@@ -1198,7 +1198,7 @@ def _pastel(n):
 
 def atomic_write_bytes(path, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (see :func:`uvbake.io.atomic_write`)."""
-    from .io import atomic_write
+    from uvbake.io import atomic_write
 
     with atomic_write(path, "wb") as fh:
         fh.write(data)

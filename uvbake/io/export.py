@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .io import _default_mode, atomic_write, load_obj_uv, save_obj
+from uvbake.errors import InputError
+from uvbake.io import _default_mode, atomic_write, load_obj_uv, save_obj
 
 #: Extensions save_textured writes.
 TEXTURED_EXTENSIONS = (".obj", ".glb")

@@ -67,7 +67,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from uvbake.errors import InputError
 
 METHODS = ("auto", "maxrects", "xatlas", "rectpack")
 DEFAULT_METHOD = "maxrects"

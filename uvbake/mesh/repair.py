@@ -14,7 +14,7 @@ The steps, in order (each vectorised over triangles, half-edges and corners):
    that would create a collapsed triangle, a non-manifold edge or a bowtie vertex are undone, so
    touching-but-separate parts and the copies made by steps 5-6 are never glued back;
 3. drop degenerate triangles (a repeated vertex, or twice the area <= 1e-12 x longest edge², the
-   criterion of :func:`uvbake.charts.check_chart`);
+   criterion of :func:`uvbake.mesh.charts.check_chart`);
 4. drop duplicated triangles (same vertex set, either orientation; the first is kept);
 5. non-manifold edges (more than two triangles): the two triangles that are consistently oriented
    and best aligned stay joined, the others are detached by copying the edge's vertices;
@@ -40,9 +40,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from .charts import _list, nonmanifold_vertices
-from .errors import InputError
-from .segment import _corner_fans
+from uvbake.mesh.charts import _list, nonmanifold_vertices
+from uvbake.errors import InputError
+from uvbake.mesh.cut import _corner_fans
 
 __all__ = ["repair", "RepairResult"]
 

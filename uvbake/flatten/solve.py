@@ -19,11 +19,11 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 
 import numpy as np
 
-from .charts import check_chart
-from .energy import DistortionEnergy, optimal_scale
-from .errors import InputError
-from .init import INITS, farthest_boundary_pair, initial_map
-from .solvers.result import ParamResult
+from uvbake.mesh.charts import check_chart
+from uvbake.flatten.energy import DistortionEnergy, optimal_scale
+from uvbake.errors import InputError
+from uvbake.flatten.starts import INITS, farthest_boundary_pair, initial_map
+from uvbake.flatten.solvers.result import ParamResult
 
 BACKENDS = ("lm", "lbfgs")
 
@@ -51,11 +51,11 @@ CONTINUATION_ALPHA = 0.1
 
 def _solve(backend, energy, x0, uv_fixed, tol, max_iter, linear_solver, callback):
     if backend == "lm":
-        from .solvers.lm import levenberg_marquardt
+        from uvbake.flatten.solvers.lm import levenberg_marquardt
 
         return levenberg_marquardt(energy, x0, uv_fixed=uv_fixed, tol=tol, max_iter=max_iter,
                                    linear_solver=linear_solver, callback=callback)
-    from .solvers.lbfgs import lbfgs
+    from uvbake.flatten.solvers.lbfgs import lbfgs
 
     return lbfgs(energy, x0, uv_fixed=uv_fixed, tol=tol, max_iter=max_iter, callback=callback)
 
@@ -98,7 +98,7 @@ def parameterize(V, F, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_it
     """
     from threadpoolctl import threadpool_limits
 
-    from .solvers.linalg import cholmod_available
+    from uvbake.flatten.solvers.linalg import cholmod_available
 
     cholmod_available()          # load CHOLMOD's BLAS first, so the limit below reaches it too
 
@@ -203,7 +203,7 @@ def parameterize_charts(charts, *, workers=None, progress=None, starts=None, **o
 
     Parameters
     ----------
-    charts : list of :class:`uvbake.charts.Chart` (or of (V, F) pairs)
+    charts : list of :class:`uvbake.mesh.charts.Chart` (or of (V, F) pairs)
     workers : int, optional
         Threads to use (default: the number of CPUs, at most the number of charts). The heavy work
         (sparse factorisations, numpy kernels) releases the GIL.

@@ -1,7 +1,7 @@
 """Initial maps for the solver: ``lscm`` (default), ``tutte`` (one boundary loop) and ``random``.
 
 All three return per-vertex UVs in the chart's own length units; the solver rescales them by the
-closed-form optimal factor of :func:`uvbake.energy.optimal_scale` before iterating.
+closed-form optimal factor of :func:`uvbake.flatten.energy.optimal_scale` before iterating.
 """
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .charts import topology
-from .energy import DistortionEnergy
-from .errors import InputError
+from uvbake.mesh.charts import topology
+from uvbake.flatten.energy import DistortionEnergy
+from uvbake.errors import InputError
 
 INITS = ("lscm", "tutte", "random")
 
@@ -135,7 +135,7 @@ def _reach(nxt, start, members):
 
 
 def _spd_solve(A, b):
-    from .solvers.linalg import make_solver
+    from uvbake.flatten.solvers.linalg import make_solver
 
     A = sp.csc_matrix(A)
     s = make_solver(A)

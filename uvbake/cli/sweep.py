@@ -35,7 +35,7 @@ def _parser():
 
 
 def main(argv=None) -> int:
-    from .errors import UvbakeError
+    from uvbake.errors import UvbakeError
 
     args = _parser().parse_args(argv)
     try:
@@ -51,9 +51,9 @@ def main(argv=None) -> int:
 def _run(args):
     import numpy as np
 
-    from .errors import InputError
-    from .io import load_mesh
-    from .sensitivity import parse_alphas, sweep
+    from uvbake.errors import InputError
+    from uvbake.io import load_mesh
+    from uvbake.analysis.sensitivity import parse_alphas, sweep
 
     alphas = parse_alphas(args.alphas)
     if args.max_iter < 0:
@@ -69,7 +69,7 @@ def _run(args):
             if not os.path.isdir(folder):
                 raise InputError(f"--{opt} {path}: folder {folder} does not exist; create it or pick another path")
     if args.plot:
-        from .sensitivity import require_matplotlib
+        from uvbake.analysis.sensitivity import require_matplotlib
 
         require_matplotlib()              # before a long sweep, not after
     mesh = load_mesh(args.mesh)

@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-SUBCOMMANDS = {"check": "uvbake.check", "sweep": "uvbake.sweep_cli"}
+SUBCOMMANDS = {"check": "uvbake.cli.check", "sweep": "uvbake.cli.sweep"}
 
 
 def _parser():
@@ -84,7 +84,7 @@ def main(argv=None):
         print("uvbake: interrupted; no output was written", file=sys.stderr)
         return 130
     except Exception as exc:  # one line, no traceback, whatever went wrong
-        from .errors import InputError, UvbakeError
+        from uvbake.errors import InputError, UvbakeError
 
         if os.environ.get("UVBAKE_DEBUG"):
             raise
@@ -105,7 +105,7 @@ def main(argv=None):
 
 def output_path(mesh, output, *, suffix="_uv", ext=".obj"):
     """The output path: the one given, or MESH<suffix><ext> beside the input; never the input itself."""
-    from .errors import InputError
+    from uvbake.errors import InputError
 
     src = Path(mesh)
     out = Path(output) if output else src.with_name(src.stem + suffix + ext)
@@ -119,8 +119,8 @@ def output_path(mesh, output, *, suffix="_uv", ext=".obj"):
 
 
 def _unwrap_command(args):
-    from .errors import InputError
-    from .pipeline import _check_texture, unwrap
+    from uvbake.errors import InputError
+    from uvbake.atlas.pipeline import _check_texture, unwrap
 
     t0 = time.perf_counter()
     if args.workers is not None and args.workers < 1:
@@ -168,7 +168,7 @@ def _unwrap_command(args):
                     guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
                     progress=on_stage, callback=on_iteration)
     if args.cross_check:
-        from .crosscheck import cross_check_charts
+        from uvbake.analysis.crosscheck import cross_check_charts
 
         result.report["cross_check"] = cross_check_charts(result.charts, result.results, alpha=args.alpha,
                                                           init=args.init, tol=args.tol, max_iter=args.max_iter,
@@ -177,19 +177,19 @@ def _unwrap_command(args):
         bar.close()
     written = result.save(out)
     if bake_path is not None:
-        from .export import save_png
+        from uvbake.io.export import save_png
 
         save_png(bake_path, result.image)
         written = list(written) + [bake_path]
     if preview_path is not None:
-        from .render import preview
+        from uvbake.render import preview
 
         preview(result, path=preview_path)
         written = list(written) + [preview_path]
     result.report["outputs"] = [str(p) for p in written] + ([str(report_path)] if report_path else [])
     result.report["timings"]["cli_total_s"] = time.perf_counter() - t0
     if report_path is not None:
-        from .io import atomic_write
+        from uvbake.io import atomic_write
 
         with atomic_write(report_path) as fh:
             json.dump(result.report, fh, indent=1)

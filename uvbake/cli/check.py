@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 
-from .errors import InputError
+from uvbake.errors import InputError
 
 __all__ = ["main", "load_uv_mesh"]
 
@@ -69,7 +69,7 @@ def load_uv_mesh(path):
     """
     import trimesh
 
-    from .validation import _row_ids
+    from uvbake.validate.core import _row_ids
 
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -108,7 +108,7 @@ def load_uv_mesh(path):
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``uvbake check``; return the exit status (0 valid, 1 invalid, 2 bad input)."""
-    from .validation import atomic_write_bytes, validate
+    from uvbake.validate.core import atomic_write_bytes, validate
 
     try:
         args = _parser().parse_args(argv)

@@ -1,6 +1,6 @@
 """Cross-check the two backends: Levenberg-Marquardt and nlopt's L-BFGS on the same F from the same start.
 
-One energy module (:mod:`uvbake.energy`), two independent solvers: LM uses F, its gradient and
+One energy module (:mod:`uvbake.flatten.energy`), two independent solvers: LM uses F, its gradient and
 its Hessian (``DistortionEnergy.evaluate``), L-BFGS only F and the gradient
 (``DistortionEnergy.value_and_gradient``). When both reach the same minimum, F* agrees to the
 solvers' tolerance and the two maps agree up to a rigid motion of the plane (F is invariant under
@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .errors import InputError, SolverError
+from uvbake.errors import InputError, SolverError
 
 #: Second-order test: H + SADDLE_SHIFT * max(diag H) * I must be positive definite at a minimum
 #: (the gauge directions give eigenvalues ~1e-14 max diag H, a real saddle -1e-2 and below).
@@ -137,7 +137,7 @@ def is_local_minimum(V, F, uv, alpha):
     """
     if alpha == 0.0:
         return None
-    from .energy import DistortionEnergy
+    from uvbake.flatten.energy import DistortionEnergy
 
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -152,7 +152,7 @@ def is_local_minimum(V, F, uv, alpha):
 def _positive_definite(H, shift):
     """Whether H + shift I is positive definite, by a Cholesky factorisation that fails when it is not.
 
-    Not :mod:`uvbake.solvers.linalg`: CHOLMOD's default mode picks a simplicial LDL^T for small
+    Not :mod:`uvbake.flatten.solvers.linalg`: CHOLMOD's default mode picks a simplicial LDL^T for small
     matrices, which succeeds on indefinite matrices (negative entries in D), so its "factor
     succeeded" does not mean positive definite. Supernodal CHOLMOD is a true LL^T; without
     scikit-sparse, SuperLU without pivoting and the signs of its pivots.
@@ -212,7 +212,7 @@ def cross_check(V, F, *, alpha=0.5, init="lscm", tol=1e-8, max_iter=1000, lbfgs_
     -------
     CrossCheckResult
     """
-    from . import parameterize
+    from uvbake import parameterize
 
     if not (rtol_energy > 0 and rtol_uv > 0):
         raise InputError(f"rtol_energy={rtol_energy!r} and rtol_uv={rtol_uv!r} must be positive tolerances")

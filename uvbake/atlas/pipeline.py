@@ -4,7 +4,7 @@
 
 Flip- and overlap-free guarantee (``guarantee=True``). The paper's energy is kept exactly; a chart
 whose solution has flipped or overlapping triangles is split in two with a short cut separating the
-bad region (``uvbake.segment.split_where``) and both parts are solved again, until every chart
+bad region (``uvbake.mesh.cut.split_where``) and both parts are solved again, until every chart
 validates. Smaller charts of a smooth surface are closer to developable, so the split recursion
 ends; a single triangle always flattens exactly, which bounds it. Every split is reported.
 """
@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .charts import Chart, check_chart, face_adjacency, split_charts
-from .errors import ChartError, InputError
-from .parameterization import _check_options, parameterize_charts
+from uvbake.mesh.charts import Chart, check_chart, face_adjacency, split_charts
+from uvbake.errors import ChartError, InputError
+from uvbake.flatten.solve import _check_options, parameterize_charts
 
 BAKE_MODES = (None, "checker", "vertex-colors")
 
@@ -57,8 +57,8 @@ class UnwrapResult:
         """Write the textured mesh (OBJ+MTL+PNG or GLB by extension) and optionally the JSON report."""
         import json
 
-        from .export import save_textured
-        from .io import atomic_write
+        from uvbake.io.export import save_textured
+        from uvbake.io import atomic_write
 
         image = self.image if self.image is not None else _blank(self.report["atlas"]["texture_size_px"])
         written = save_textured(path, self.V, self.F, self.corner_uv, image, vertex_colors=self.vertex_colors)
@@ -111,7 +111,7 @@ def unwrap(source, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1
     """
     from threadpoolctl import threadpool_limits
 
-    from .solvers.linalg import cholmod_available
+    from uvbake.flatten.solvers.linalg import cholmod_available
 
     cholmod_available()          # load CHOLMOD's BLAS first, so the limit below reaches it too
     # One BLAS thread in every stage: charts are solved in parallel threads, and two BLAS pools
@@ -135,19 +135,19 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
                    continuation=continuation, callback=callback)
     note = progress or (lambda stage, done, total: None)
 
-    from .io import load_mesh
+    from uvbake.io import load_mesh
 
     t = time.perf_counter()
     mesh = load_mesh(source, face_labels=face_labels)
     V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
     # NaN or infinite coordinates are corrupt data, not a reconstruction artefact: refuse them
     # (naming the vertices) rather than silently dropping faces
-    from .charts import check_arrays
+    from uvbake.mesh.charts import check_arrays
 
     check_arrays(V, F, where=str(mesh.source))
     repair_report = None
     if repair:
-        from .repair import repair as repair_mesh
+        from uvbake.mesh.repair import repair as repair_mesh
 
         rep = repair_mesh(V, F)
         repair_report = rep.to_dict()
@@ -184,7 +184,7 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
                                                   known_invalid=known_invalid)
     timings["split_s"] = time.perf_counter() - t
 
-    from .pack import corner_uvs, pack_charts
+    from uvbake.atlas.pack import corner_uvs, pack_charts
 
     t = time.perf_counter()
     packed = pack_charts([r.uv for r in results], [c.F for c in charts],
@@ -193,7 +193,7 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     timings["pack_s"] = time.perf_counter() - t
     note("pack", 1, 1)
 
-    from .validation import validate
+    from uvbake.validate.core import validate
 
     t = time.perf_counter()
     chart_ids = np.empty(len(F), np.int64)
@@ -205,7 +205,7 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     image = None
     t = time.perf_counter()
     if bake is not None:
-        from .bake import bake_checker, bake_vertex_colors
+        from uvbake.atlas.bake import bake_checker, bake_vertex_colors
 
         if bake == "checker":
             image = bake_checker(V, F, corner_uv, texture_size_px=texture_size_px,
@@ -268,7 +268,7 @@ def _disk_charts(V, F, labels, *, auto_cut):
                 if "closed" in str(exc) or "handle" in str(exc):
                     raise ChartError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
                 raise
-        from .segment import cut_to_disks
+        from uvbake.mesh.cut import cut_to_disks
 
         sub = cut_to_disks(c.V, c.F)
         parts = _subcharts(c, sub)
@@ -299,7 +299,7 @@ def _seam_length(chart, sub_labels):
 
 def _invalid_faces(chart, result):
     """Flipped, degenerate and overlapping faces of a solved chart (exact check)."""
-    from .validation import validate
+    from uvbake.validate.core import validate
 
     rep = validate(result.uv, chart.F, chart_ids=np.zeros(len(chart.F), np.int64), resolution_px=1024)
     det = _dets(chart, result.uv)
@@ -309,14 +309,14 @@ def _invalid_faces(chart, result):
 
 
 def _dets(chart, uv):
-    from .energy import jacobians, triangle_frames
+    from uvbake.flatten.energy import jacobians, triangle_frames
 
     _, Q, _ = triangle_frames(chart.V, chart.F)
     return np.linalg.det(jacobians(Q, chart.F, uv))
 
 
 def _split_until_valid(charts, results, options, *, max_splits, workers, note):
-    from .segment import split_where
+    from uvbake.mesh.cut import split_where
 
     splits, known_invalid = [], []
     todo = list(range(len(charts)))
@@ -376,7 +376,7 @@ def _merge_back(V, F, charts, results, options, *, note, budget_s, known_invalid
     Each union starts from the two parts' maps, rigidly aligned on their shared seam vertices, and
     the pass stops after ``budget_s`` seconds.
     """
-    from .charts import ChartError
+    from uvbake.mesh.charts import ChartError
 
     deadline = time.perf_counter() + budget_s
     charts, results = list(charts), list(results)
@@ -458,7 +458,7 @@ def _aligned_union_start(union, ci, uvi, cj, uvj):
 
 def _distortion(chart, result):
     """Area-weighted angle distortion (sigma1/sigma2) and area distortion (|log sigma1 sigma2|)."""
-    from .energy import jacobians, triangle_frames
+    from uvbake.flatten.energy import jacobians, triangle_frames
 
     _, Q, area = triangle_frames(chart.V, chart.F)
     s = np.linalg.svd(jacobians(Q, chart.F, result.uv), compute_uv=False)

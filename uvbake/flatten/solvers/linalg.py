@@ -36,7 +36,7 @@ def make_solver(pattern, *, method="auto"):
         "auto" takes CHOLMOD when scikit-sparse is installed, SuperLU otherwise.
     """
     if method not in ("auto", "cholmod", "superlu"):
-        from ..errors import InputError
+        from uvbake.errors import InputError
 
         raise InputError(f"linear_solver={method!r} is not one of 'auto', 'cholmod', 'superlu'")
     if method == "cholmod" or (method == "auto" and cholmod_available()):

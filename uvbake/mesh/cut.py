@@ -26,8 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
-from .charts import _list, check_arrays, face_adjacency, topology
-from .errors import ChartError, InputError
+from uvbake.mesh.charts import _list, check_arrays, face_adjacency, topology
+from uvbake.errors import ChartError, InputError
 
 __all__ = ["bisect", "split_where", "cut_to_disks", "seam_length"]
 
@@ -38,7 +38,7 @@ MIN_FRACTION = 0.1
 # ------------------------------------------------------------------------------------------ graphs
 def _dual_edges(F, n):
     """Pairs of triangles sharing an edge: (fi, fj, ea, eb, hi, hj), see
-    :func:`uvbake.charts.face_adjacency` (ea, eb: the shared edge's vertices)."""
+    :func:`uvbake.mesh.charts.face_adjacency` (ea, eb: the shared edge's vertices)."""
     fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
     return fi, fj, e[:, 0], e[:, 1], hi, hj
 
@@ -311,7 +311,7 @@ def bisect(V, F, *, weights=None, seed_faces=None, min_fraction=MIN_FRACTION):
     Returns
     -------
     (m,) int array of labels in {0, 1}; both sides are non-empty and edge-connected and no vertex
-    joins two fans of one side, so each side is a valid chart (:func:`uvbake.charts.check_chart`)
+    joins two fans of one side, so each side is a valid chart (:func:`uvbake.mesh.charts.check_chart`)
     whenever the input is one. When seeds are given, side 1 is the side holding most of them.
     """
     V, F, fi, fj, w, hi, hj = _prepare(V, F, "bisect")
@@ -339,7 +339,7 @@ def bisect(V, F, *, weights=None, seed_faces=None, min_fraction=MIN_FRACTION):
         labels, ok = _make_valid(F, len(V), labels, fi, fj, hi, hj)
         if not ok:
             raise ChartError(f"bisect: could not cut the chart of {m} triangles into two valid parts; "
-                             "repair the mesh (uvbake.repair.repair) or give it segment labels")
+                             "repair the mesh (uvbake.mesh.repair.repair) or give it segment labels")
     if seed_faces is not None and seeds is not None:
         on1 = labels[seeds].mean()
         if on1 < 0.5:
@@ -405,13 +405,13 @@ def cut_to_disks(V, F, *, max_charts=64):
     Returns
     -------
     (m,) int array of labels 0..k-1, numbered by first triangle. Every label's triangles pass
-    :func:`uvbake.charts.check_chart`.
+    :func:`uvbake.mesh.charts.check_chart`.
 
     Raises
     ------
     ChartError  for non-manifold edges or vertices (repair first), or when `max_charts` is exceeded.
     """
-    from .charts import nonmanifold_vertices
+    from uvbake.mesh.charts import nonmanifold_vertices
 
     V, F = check_arrays(V, F, where="cut_to_disks")
     n, m = len(V), len(F)
@@ -422,11 +422,11 @@ def cut_to_disks(V, F, *, max_charts=64):
     if (cnt > 2).any():
         bad = uk[cnt > 2]
         pairs = ", ".join(f"({k // n},{k % n})" for k in bad[:5])
-        raise ChartError(f"cut_to_disks: {len(bad)} non-manifold edges ({pairs}); run uvbake.repair.repair first")
+        raise ChartError(f"cut_to_disks: {len(bad)} non-manifold edges ({pairs}); run uvbake.mesh.repair.repair first")
     bow = nonmanifold_vertices(F, n)
     if len(bow):
         raise ChartError(f"cut_to_disks: {len(bow)} non-manifold vertices ({_list(bow)}); "
-                         "run uvbake.repair.repair first")
+                         "run uvbake.mesh.repair.repair first")
     _, labels = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(m, m)),
                                       directed=False)
     labels = labels.astype(np.int64)

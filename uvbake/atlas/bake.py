@@ -50,7 +50,7 @@ import math
 
 import numpy as np
 
-from .errors import InputError
+from uvbake.errors import InputError
 
 #: Texels within this distance (in texels) of a UV triangle are baked by Open3D itself (clamped to
 #: the closest point of the triangle); must be at least sqrt(2) so that bilinear level-0 reads of any

@@ -1,6 +1,6 @@
 """nlopt's L-BFGS (LD_LBFGS) on the distortion energy: the cross-check backend.
 
-Same F, same analytic gradient (:class:`uvbake.energy.DistortionEnergy`), same stopping rule as
+Same F, same analytic gradient (:class:`uvbake.flatten.energy.DistortionEnergy`), same stopping rule as
 Levenberg-Marquardt (the Euclidean norm of the gradient over the free unknowns under ``tol``, the
 problem being normalised to unit mean edge length), same result record.
 
@@ -75,7 +75,7 @@ REFRESH_EVERY = 50
 
 def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vector_storage=None,
           max_eval=None, restarts=50, precondition=None, refresh_every=None):
-    """Minimise ``energy`` (a :class:`uvbake.energy.DistortionEnergy`) with nlopt's LD_LBFGS.
+    """Minimise ``energy`` (a :class:`uvbake.flatten.energy.DistortionEnergy`) with nlopt's LD_LBFGS.
 
     Parameters
     ----------
@@ -246,7 +246,7 @@ def _preconditioner(energy, x0, uv_fixed, kind):
     "none": T = I.
     """
     if kind not in ("cholesky", "jacobi", "none"):
-        from ..errors import InputError
+        from uvbake.errors import InputError
 
         raise InputError(f"precondition={kind!r} is not one of 'cholesky', 'jacobi', 'none'")
     if kind == "none" or len(x0) == 0:

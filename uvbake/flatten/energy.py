@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import InputError
+from uvbake.errors import InputError
 
 
 def triangle_frames(V, F):

@@ -13,7 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .errors import ChartError, InputError
+from uvbake.errors import ChartError, InputError
 
 
 @dataclass

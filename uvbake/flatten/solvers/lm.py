@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from .linalg import NotPositiveDefinite, make_solver
+from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
 
 
 # Damping constants, chosen by measurement (bench/solver.py; iterations from LSCM starts on
@@ -53,7 +53,7 @@ MAX_ESCAPES = 20
 
 def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0=None,
                         linear_solver="auto", callback=None):
-    """Minimise ``energy`` (a :class:`uvbake.energy.DistortionEnergy`) from the free unknowns ``x0``.
+    """Minimise ``energy`` (a :class:`uvbake.flatten.energy.DistortionEnergy`) from the free unknowns ``x0``.
 
     Parameters
     ----------

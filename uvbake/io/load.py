@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from uvbake.errors import InputError
 
 #: Face property names read as per-face segment labels, first found wins.
 LABEL_NAMES = ("segment", "label", "segment_id", "chart", "chart_id", "region")

@@ -1,0 +1,7 @@
+"""``python -m uvbake.cli``: the ``uvbake`` command."""
+
+import sys
+
+from uvbake.cli.unwrap import main
+
+sys.exit(main())
