@@ -27,7 +27,8 @@ sys.path.insert(0, str(REPO))
 
 import uvbake  # noqa: E402
 from uvbake.errors import InputError  # noqa: E402
-from uvbake.atlas.pack import min_chart_distance, pack_charts  # noqa: E402
+from uvbake.atlas.distance import min_chart_distance
+from uvbake.atlas.pack import pack_charts
 
 SHARED = REPO.parent / "shared" / "meshes"
 

@@ -83,7 +83,7 @@ def open_closed(V, F):
 def load_case(name):
     """(V, F, charts) of a case; charts are uvbake Chart records (one for a single-chart mesh)."""
     import uvbake
-    from uvbake.io import load_mesh
+    from uvbake.io.load import load_mesh
 
     if name in SAMPLE:
         m = load_mesh(SCENES / f"{name}.ply")

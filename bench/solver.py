@@ -27,7 +27,7 @@ def main():
     if not MESHES.is_dir():
         sys.exit(f"bench/solver.py: {MESHES} not found; the research meshes live beside the checkout")
     import uvbake
-    from uvbake.io import load_mesh
+    from uvbake.io.load import load_mesh
     from uvbake.flatten.solvers.linalg import cholmod_available
 
     print(f"# uvbake LM solver, {platform.processor() or platform.machine()}, "

@@ -71,7 +71,7 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=3)
     args = p.parse_args(argv)
 
-    import uvbake.validate.core as V
+    import uvbake.validate as V
 
     print(f"uvbake.validate benchmark ({os.cpu_count()} cpus, numpy {np.__version__})")
     sizes = [100_000] if args.quick else [10_000, 30_000, 100_000, 300_000]

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 import uvbake
-from uvbake.mesh.charts import check_chart, nonmanifold_vertices, split_charts, topology
+from uvbake.mesh.charts import check_chart, split_charts
+from uvbake.mesh.topology import nonmanifold_vertices, topology
 from meshgen import bumpy_disk, grid, torus
 
 

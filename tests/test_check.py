@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from uvbake.cli.check import load_uv_mesh, main
-from uvbake.validate.core import FLIPPED_RGB, OVERLAP_RGB
+from uvbake.validate.report import FLIPPED_RGB, OVERLAP_RGB
 
 # a unit square in 3D cut into two UV charts along its diagonal edge 1-3; vertices 1 and 3 have two
 # UVs each (a seam), and the second chart is mirrored as a whole (as xatlas sometimes does)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from uvbake.cli import main
-from uvbake.io import load_obj_uv
+from uvbake.io.obj import load_obj_uv
 from conftest import SAMPLE_SCENES
 
 

@@ -10,7 +10,7 @@ from uvbake.mesh.charts import split_charts
 from uvbake.analysis.crosscheck import CrossCheckError, cross_check, cross_check_charts, rigid_align, uv_diameter
 from uvbake.flatten.energy import DistortionEnergy
 from uvbake.errors import SolverError
-from uvbake.io import load_mesh
+from uvbake.io.load import load_mesh
 
 pytest.importorskip("nlopt")
 

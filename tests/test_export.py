@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from uvbake import export as export_mod
+import uvbake.io.export as export_mod
 from uvbake.errors import InputError
-from uvbake.io.export import load_textured_uv, save_textured, split_corners
+from uvbake.io.export import load_textured_uv, save_textured
+from uvbake.io.corners import split_corners
 
 GLTF_VALIDATOR_VERSION = "2.0.0-dev.3.10"
 NODE_PREFIX_DEFAULT = Path.home() / ".cache" / "uvbake" / "node"
@@ -83,7 +84,7 @@ def test_obj_file_contents(tmp_path):
     assert n_vt == len(np.unique(uv.reshape(-1, 2), axis=0)) < 3 * len(F)  # one vt per distinct UV
     assert n_vt == len(V) + len(seam)  # seam vertices: one vt per chart
     assert "map_Kd m.png" in mtl.read_text() and "newmtl atlas" in mtl.read_text()
-    from uvbake.io import load_obj_uv
+    from uvbake.io.obj import load_obj_uv
     mesh, _, _ = load_obj_uv(obj)
     np.testing.assert_array_equal(mesh.vertex_colors, colors)
     from PIL import Image

@@ -7,8 +7,12 @@ import numpy as np
 import pytest
 
 import uvbake.io as uio
+import uvbake.io.obj as uobj
 from uvbake.errors import InputError
-from uvbake.io import MeshData, atomic_write, load_mesh, load_obj_uv, save_obj
+from uvbake.io.meshdata import MeshData
+from uvbake.io.load import load_mesh
+from uvbake.io.atomic import atomic_write
+from uvbake.io.obj import load_obj_uv, save_obj
 
 
 # ------------------------------------------------------------------------------------------------
@@ -416,14 +420,14 @@ def test_save_obj_failing_mid_write_leaves_the_old_obj(tmp_path, monkeypatch):
     path = tmp_path / "mesh.obj"
     save_obj(path, V, F)
     before = path.read_bytes()
-    real = uio._write_rows
+    real = uobj._write_rows
 
     def fail_on_faces(f, tag, rows, fmt):
         if tag == "f":
             raise OSError("disk full")
         real(f, tag, rows, fmt)
 
-    monkeypatch.setattr(uio, "_write_rows", fail_on_faces)
+    monkeypatch.setattr(uobj, "_write_rows", fail_on_faces)
     with pytest.raises(OSError, match="disk full"):
         save_obj(path, V + 1.0, F, uv=V[:, :2])
     assert path.read_bytes() == before

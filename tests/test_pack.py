@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from uvbake.errors import InputError
-from uvbake.atlas.pack import corner_uvs, min_chart_distance, pack_charts
+from uvbake.atlas.pack import corner_uvs, pack_charts
+from uvbake.atlas.distance import min_chart_distance
 
 # ------------------------------------------------------------------------------------------ helpers
 

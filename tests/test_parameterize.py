@@ -94,7 +94,7 @@ def test_initial_maps():
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, random_map(V, F, seed=2))
     # Tutte puts the boundary on a circle whose circumference is the boundary's length
-    from uvbake.mesh.charts import topology
+    from uvbake.mesh.topology import topology
 
     bnd = np.unique(topology(F).boundary_edges)
     rad = np.linalg.norm(tutte(V, F)[bnd], axis=1)
@@ -149,7 +149,7 @@ def test_charts_in_parallel_match_serial():
 
 @pytest.mark.meshes
 def test_halftunnel_converges_from_lscm_and_random():
-    from uvbake.io import load_mesh
+    from uvbake.io.load import load_mesh
 
     m = load_mesh(shared_mesh("halftunnel.off"))
     for init in ("lscm", "random"):
@@ -175,7 +175,7 @@ def test_halftunnel_alpha_05_ends_at_a_minimum_not_a_saddle():
     # found by the L-BFGS cross-check: with an L D L^T factorisation that accepted indefinite
     # matrices, LM stopped at a saddle with F 102.72 and two negative Hessian eigenvalues
     from uvbake.analysis.crosscheck import is_local_minimum
-    from uvbake.io import load_mesh
+    from uvbake.io.load import load_mesh
 
     m = load_mesh(shared_mesh("halftunnel.off"))
     r = parameterize(m.V, m.F, alpha=0.5)

@@ -71,7 +71,7 @@ def test_bowtie_vertices_are_repaired_with_a_report_entry():
     n_cells = 16
     Fb = np.delete(F, [6, 6 + n_cells, 9, 9 + n_cells], axis=0)
     Vb = V
-    np.testing.assert_array_equal(uvbake.mesh.charts.nonmanifold_vertices(Fb, len(Vb)), [12])
+    np.testing.assert_array_equal(uvbake.mesh.topology.nonmanifold_vertices(Fb, len(Vb)), [12])
     assert len(uvbake.split_charts(Vb, Fb, check=False)) == 1
     res = unwrap((Vb, Fb), alpha=0.5, texture_size_px=128)
     assert_valid_atlas(res)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from meshgen import bumpy_disk, grid
-from uvbake.mesh.charts import check_chart, nonmanifold_vertices, split_charts, topology
+from uvbake.mesh.charts import check_chart, split_charts
+from uvbake.mesh.topology import nonmanifold_vertices, topology
 from uvbake.errors import InputError
 from uvbake.mesh.repair import repair
 
@@ -204,7 +205,7 @@ def test_malformed_input_names_the_elements():
 
 
 def test_shared_meshes_are_clean(shared_meshes):
-    from uvbake.io import load_mesh
+    from uvbake.io.load import load_mesh
 
     for name in ("halftunnel.off", "cow.off"):
         m = load_mesh(shared_meshes / name)

@@ -13,7 +13,7 @@ import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from uvbake.io import load_mesh
+from uvbake.io.load import load_mesh
 
 SAMPLE_SCENES = Path(__file__).resolve().parents[1] / "sample_scenes"
 SCENE_FILES = ["disk_holes.ply", "sphere_cap.ply", "scene.ply", "multi_component.ply"]

@@ -7,9 +7,10 @@ import pytest
 
 from conftest import shared_mesh
 from meshgen import bumpy_disk, grid, torus
-from uvbake.mesh.charts import check_chart, split_charts, topology
+from uvbake.mesh.charts import check_chart, split_charts
+from uvbake.mesh.topology import topology
 from uvbake.errors import ChartError, InputError
-from uvbake.io import load_mesh
+from uvbake.io.load import load_mesh
 from uvbake.mesh.cut import bisect, cut_to_disks, seam_length, split_where
 
 

@@ -9,7 +9,7 @@ import pytest
 import uvbake
 from conftest import SAMPLE_SCENES
 from uvbake.errors import InputError
-from uvbake.io import load_mesh
+from uvbake.io.load import load_mesh
 from uvbake.analysis.sensitivity import finite_difference, parse_alphas, relative_sensitivity, sweep
 from uvbake.cli.sweep import main
 

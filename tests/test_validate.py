@@ -10,7 +10,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from uvbake.validate.core import FLIPPED_RGB, OVERLAP_RGB, validate
+from uvbake.validate.report import FLIPPED_RGB, OVERLAP_RGB
+from uvbake.validate.core import validate
 
 # --------------------------------------------------------------------------------------------------
 # fixtures and the oracle
@@ -186,7 +187,7 @@ def test_touching_triangles_that_snapping_makes_both_claim_a_pixel_are_not_overl
     # passes 1e-4 px from a pixel centre; snapping to 1/256 px moves T1's edge across that centre, so
     # the raster sees a pixel claimed twice. The exact pass must reject the pair and the pixel must
     # not count as overlap nor be drawn red.
-    import uvbake.validate.core as module
+    import uvbake.validate.raster as module
 
     R = 64
     spurious = 0
@@ -495,7 +496,7 @@ def test_overlap_image_has_strong_colours_where_expected(tmp_path):
 
 def test_massive_overlap_stops_at_the_work_budget_and_is_never_valid(monkeypatch):
     # "reset" UVs: every quad mapped onto the whole texture; with small budgets the check stops
-    import uvbake.validate.core as module
+    from uvbake.validate import budgets
 
     sq = np.array([[[0, 0], [1, 0], [1, 1]], [[0, 0], [1, 1], [0, 1]]], float)
     uv = np.tile(sq, (20, 1, 1))
@@ -503,16 +504,16 @@ def test_massive_overlap_stops_at_the_work_budget_and_is_never_valid(monkeypatch
     # each lower triangle overlaps the 19 other lower ones, same for the upper; lower and upper
     # triangles only share the diagonal
     assert full.complete and full.n_overlaps == 2 * (20 * 19 // 2)
-    monkeypatch.setattr(module, "_MIN_RAW_PAIRS", 50)
-    monkeypatch.setattr(module, "_RAW_PAIRS_PER_FACE", 1)
-    monkeypatch.setattr(module, "_MAX_CLAIMS", 100)
+    monkeypatch.setattr(budgets, "MIN_RAW_PAIRS", 50)
+    monkeypatch.setattr(budgets, "RAW_PAIRS_PER_FACE", 1)
+    monkeypatch.setattr(budgets, "MAX_CLAIMS", 100)
     r = validate(uv, resolution_px=32)
     assert not r.complete and not r.valid and r.notes
     assert 0 < r.n_overlaps < full.n_overlaps
     assert set(map(tuple, r.overlap_pairs.tolist())) <= set(map(tuple, full.overlap_pairs.tolist()))
     assert not r.overlap_subpixel.any()  # unknown is not "harmless"
     assert "stopped early" in r.summary()
-    monkeypatch.setattr(module, "_MAX_SPAN_ROWS", 10)
+    monkeypatch.setattr(budgets, "MAX_SPAN_ROWS", 10)
     r2 = validate(uv, resolution_px=32)
     assert np.isnan(r2.overlap_area_fraction) and not r2.valid
     d = json.loads(json.dumps(r2.to_dict()))
@@ -520,7 +521,7 @@ def test_massive_overlap_stops_at_the_work_budget_and_is_never_valid(monkeypatch
 
 
 def test_uvbake_validate_is_the_function_even_after_importing_the_module():
-    import uvbake.validate.core  # noqa: F401
+    import uvbake.validate.core  # noqa: F401  (the package stays callable)
 
     V, F = grid(2)
     assert uvbake.validate(V, F, resolution_px=32).valid

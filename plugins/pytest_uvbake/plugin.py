@@ -170,7 +170,7 @@ def _write_png(path: Path, img: np.ndarray):
     """Write atomically (a temporary file in the same folder, then rename)."""
     from PIL import Image
 
-    from uvbake.io import atomic_write
+    from uvbake.io.atomic import atomic_write
 
     path.parent.mkdir(parents=True, exist_ok=True)
     arr = img[:, :, 0] if img.shape[2] == 1 else img

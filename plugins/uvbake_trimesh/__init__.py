@@ -73,7 +73,7 @@ def to_trimesh(result):
     import trimesh
     from PIL import Image
 
-    from uvbake.io.export import split_corners
+    from uvbake.io.corners import split_corners
 
     source, uv, F_new = split_corners(result.F, result.corner_uv)
     image = result.image

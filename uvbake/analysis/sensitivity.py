@@ -459,7 +459,7 @@ def _num(v):
 
 def _atomic_write(path, data: bytes):
     """Write ``data`` to ``path`` atomically (see :func:`uvbake.io.atomic_write`)."""
-    from uvbake.io import atomic_write
+    from uvbake.io.atomic import atomic_write
 
     with atomic_write(path, "wb") as fh:
         fh.write(data)

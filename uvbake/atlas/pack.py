@@ -60,13 +60,14 @@ chart would be counted twice; validated charts have none).
 
 from __future__ import annotations
 
-import itertools
 import numbers
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from uvbake.atlas.distance import min_chart_distance
+from uvbake.atlas.maxrects import _RULES, _maxrects, _orders, _rot, min_area_rect
 from uvbake.errors import InputError
 
 METHODS = ("auto", "maxrects", "xatlas", "rectpack")
@@ -189,151 +190,7 @@ def triangle_areas(uv, F):
     return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
 
 
-def _rot(theta):
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, -s], [s, c]])
-
-
-def _hull_points(P):
-    """Convex hull vertices of 2D points (counter-clockwise), or the points when degenerate."""
-    if len(P) < 3:
-        return P
-    from scipy.spatial import ConvexHull
-    from scipy.spatial import QhullError
-
-    try:
-        return P[ConvexHull(P).vertices]
-    except QhullError:          # collinear or coincident points
-        return P
-
-
-def min_area_rect(P):
-    """Minimum-area bounding rectangle of 2D points by rotating calipers on the convex hull.
-
-    Returns ``(theta, w, h)``: rotating the points by ``theta`` (counter-clockwise, radians) makes the
-    rectangle axis-aligned with width ``w >= h``. Vectorised over hull edges.
-    """
-    P = np.asarray(P, dtype=np.float64)
-    H = _hull_points(P)
-    H = H - H.mean(axis=0)
-    if len(H) < 2 or np.ptp(H, axis=0).max() == 0.0:
-        return 0.0, 0.0, 0.0
-    if len(H) < 3:   # degenerate: align the direction of largest spread
-        _, _, vt = np.linalg.svd(H, full_matrices=False)
-        angles = np.array([np.arctan2(vt[0, 1], vt[0, 0])])
-    else:
-        E = np.roll(H, -1, axis=0) - H
-        angles = np.arctan2(E[:, 1], E[:, 0])
-    # every edge direction as the x axis: project the hull on (cos, sin) and (-sin, cos)
-    c, s = np.cos(angles), np.sin(angles)
-    x = H @ np.stack([c, s])                # (h, e)
-    y = H @ np.stack([-s, c])
-    w = x.max(axis=0) - x.min(axis=0)
-    h = y.max(axis=0) - y.min(axis=0)
-    k = int(np.argmin(w * h))
-    theta, w, h = -angles[k], w[k], h[k]
-    if h > w:                                # lay it long side along x
-        theta += np.pi / 2
-        w, h = h, w
-    theta = float(np.arctan2(np.sin(theta), np.cos(theta)))
-    return theta, float(w), float(h)
-
-
 # ----------------------------------------------------------------------------- own MaxRects packer
-
-_RULES = ("bssf", "blsf", "baf", "bl", "cp")
-
-
-def _maxrects(sizes, order, rule, allow_turn=True):
-    """Pack rectangles ``sizes (n,2)`` in the unit square in ``order`` with placement ``rule``.
-
-    Returns ``(pos (n,2), turned (n,) bool)`` or ``None`` when a rectangle does not fit. A rectangle
-    may be turned by 90 degrees. Free space is kept as maximal rectangles (x0, y0, x1, y1).
-    """
-    n = len(sizes)
-    free = np.array([[0.0, 0.0, 1.0, 1.0]])
-    placed = np.empty((0, 4))
-    pos = np.zeros((n, 2))
-    turned = np.zeros(n, dtype=bool)
-    for i in order:
-        best = None
-        fw = free[:, 2] - free[:, 0]
-        fh = free[:, 3] - free[:, 1]
-        for t, (w, h) in enumerate((sizes[i], sizes[i][::-1])):
-            if t == 1 and (not allow_turn or sizes[i][0] == sizes[i][1]):
-                break
-            ok = (fw >= w) & (fh >= h)
-            if not ok.any():
-                continue
-            idx = np.flatnonzero(ok)
-            lw, lh = fw[idx] - w, fh[idx] - h
-            if rule == "bssf":
-                s1, s2 = np.minimum(lw, lh), np.maximum(lw, lh)
-            elif rule == "blsf":
-                s1, s2 = np.maximum(lw, lh), np.minimum(lw, lh)
-            elif rule == "baf":
-                s1, s2 = fw[idx] * fh[idx] - w * h, np.minimum(lw, lh)
-            elif rule == "bl":
-                s1, s2 = free[idx, 1] + h, free[idx, 0]
-            else:  # contact point: maximise the perimeter touching the border and placed boxes
-                x0, y0 = free[idx, 0], free[idx, 1]
-                x1, y1 = x0 + w, y0 + h
-                contact = ((x0 == 0) + (x1 >= 1)) * h + ((y0 == 0) + (y1 >= 1)) * w
-                if len(placed):
-                    px0, py0, px1, py1 = (placed[:, j][None, :] for j in range(4))
-                    ov_y = np.clip(np.minimum(y1[:, None], py1) - np.maximum(y0[:, None], py0), 0, None)
-                    ov_x = np.clip(np.minimum(x1[:, None], px1) - np.maximum(x0[:, None], px0), 0, None)
-                    touch_x = (px1 == x0[:, None]) | (px0 == x1[:, None])
-                    touch_y = (py1 == y0[:, None]) | (py0 == y1[:, None])
-                    contact = contact + (touch_x * ov_y).sum(1) + (touch_y * ov_x).sum(1)
-                s1, s2 = -contact, free[idx, 1]
-            j = np.lexsort((s2, s1))[0]
-            cand = (s1[j], s2[j], idx[j], t, w, h)
-            if best is None or (cand[0], cand[1]) < (best[0], best[1]):
-                best = cand
-        if best is None:
-            return None
-        _, _, f, t, w, h = best
-        x0, y0 = free[f, 0], free[f, 1]
-        r = np.array([x0, y0, x0 + w, y0 + h])
-        pos[i] = (x0, y0)
-        turned[i] = bool(t)
-        placed = np.vstack([placed, r])
-        # split every free rectangle the new box intersects into up to four maximal pieces
-        hit = (free[:, 0] < r[2]) & (free[:, 2] > r[0]) & (free[:, 1] < r[3]) & (free[:, 3] > r[1])
-        if hit.any():
-            F = free[hit]
-            pieces = []
-            m = F[:, 0] < r[0]
-            pieces.append(np.column_stack([F[m, 0], F[m, 1], np.full(m.sum(), r[0]), F[m, 3]]))
-            m = F[:, 2] > r[2]
-            pieces.append(np.column_stack([np.full(m.sum(), r[2]), F[m, 1], F[m, 2], F[m, 3]]))
-            m = F[:, 1] < r[1]
-            pieces.append(np.column_stack([F[m, 0], F[m, 1], F[m, 2], np.full(m.sum(), r[1])]))
-            m = F[:, 3] > r[3]
-            pieces.append(np.column_stack([F[m, 0], np.full(m.sum(), r[3]), F[m, 2], F[m, 3]]))
-            free = np.vstack([free[~hit], *pieces])
-            # drop rectangles contained in another one (keep one of equal duplicates)
-            A = free
-            cont = ((A[:, None, 0] >= A[None, :, 0]) & (A[:, None, 1] >= A[None, :, 1])
-                    & (A[:, None, 2] <= A[None, :, 2]) & (A[:, None, 3] <= A[None, :, 3]))
-            np.fill_diagonal(cont, False)
-            eq = cont & cont.T
-            cont &= ~(eq & (np.arange(len(A))[:, None] < np.arange(len(A))[None, :]))
-            free = A[~cont.any(axis=1)]
-    return pos, turned
-
-
-def _orders(wh):
-    """Candidate insertion orders of the (unpadded) rectangles, biggest first by several keys."""
-    w, h = wh[:, 0], wh[:, 1]
-    keys = [w * h, np.maximum(w, h), w + h, h, np.minimum(w, h)]
-    out = []
-    for k in keys:
-        o = tuple(np.lexsort((np.arange(len(k)), -k)))
-        if o not in out:
-            out.append(o)
-    return [np.array(o) for o in out]
 
 
 def _bisect_scale(feasible, s_hi, lo=None, lo_payload=None):
@@ -560,78 +417,6 @@ def _place_xatlas(uvs, faces, N, g, brute_force=False):
 
 
 # ---------------------------------------------------------------------------- distance (checking)
-
-def boundary_segments(uv, F):
-    """Boundary edges of a chart as segments (b,2,2): edges used by exactly one triangle."""
-    E = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.sort(E, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    B = E[cnt[inv.ravel()] == 1]
-    return uv[B]
-
-
-def _seg_seg_dist(S, T):
-    """Distance between every segment of S (a,2,2) and T (b,2,2), (a,b); 0 where they cross."""
-    def pt_seg(P, A, B):
-        d = B - A
-        L = (d * d).sum(-1)
-        t = np.where(L > 0, ((P - A) * d).sum(-1) / np.where(L > 0, L, 1), 0.0)
-        t = np.clip(t, 0, 1)
-        c = A + t[..., None] * d
-        return np.sqrt(((P - c) ** 2).sum(-1))
-
-    a0, a1 = S[:, None, 0], S[:, None, 1]
-    b0, b1 = T[None, :, 0], T[None, :, 1]
-    d = np.minimum.reduce([pt_seg(a0, b0, b1), pt_seg(a1, b0, b1), pt_seg(b0, a0, a1), pt_seg(b1, a0, a1)])
-
-    def orient(p, q, r):
-        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
-    o1, o2 = orient(a0, a1, b0), orient(a0, a1, b1)
-    o3, o4 = orient(b0, b1, a0), orient(b0, b1, a1)
-    cross = (o1 * o2 < 0) & (o3 * o4 < 0)
-    return np.where(cross, 0.0, d)
-
-
-def _points_in_triangles(P, uv, F):
-    """True where a point of P lies inside (or on) some triangle of (uv, F)."""
-    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
-    out = np.zeros(len(P), dtype=bool)
-    for k in range(0, len(P), 256):
-        p = P[k:k + 256, None, :]
-        d1 = (b[:, 0] - a[:, 0]) * (p[..., 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (p[..., 0] - a[:, 0])
-        d2 = (c[:, 0] - b[:, 0]) * (p[..., 1] - b[:, 1]) - (c[:, 1] - b[:, 1]) * (p[..., 0] - b[:, 0])
-        d3 = (a[:, 0] - c[:, 0]) * (p[..., 1] - c[:, 1]) - (a[:, 1] - c[:, 1]) * (p[..., 0] - c[:, 0])
-        inside = ((d1 >= 0) & (d2 >= 0) & (d3 >= 0)) | ((d1 <= 0) & (d2 <= 0) & (d3 <= 0))
-        out[k:k + 256] = inside.any(axis=1)
-    return out
-
-
-def min_chart_distance(uvs, faces):
-    """Exact minimum distance between the triangles of different charts (0 when two charts overlap).
-
-    Two disjoint planar triangle sets are at the distance of their closest boundary segments; they
-    overlap when boundaries cross or a vertex of one lies in a triangle of the other.
-    """
-    segs = [boundary_segments(np.asarray(uv, float), np.asarray(F)) for uv, F in zip(uvs, faces)]
-    boxes = np.array([[s[..., 0].min(), s[..., 1].min(), s[..., 0].max(), s[..., 1].max()] for s in segs])
-    best = np.inf
-    for i, j in itertools.combinations(range(len(uvs)), 2):
-        # bbox distance is a lower bound: skip pairs that cannot beat the current best
-        dx = max(boxes[i, 0] - boxes[j, 2], boxes[j, 0] - boxes[i, 2], 0.0)
-        dy = max(boxes[i, 1] - boxes[j, 3], boxes[j, 1] - boxes[i, 3], 0.0)
-        if np.hypot(dx, dy) >= best:
-            continue
-        if dx == 0 and dy == 0:   # bboxes overlap: a chart may sit in the other (hole or overlap)
-            if (_points_in_triangles(np.asarray(uvs[i][:1], float), np.asarray(uvs[j], float), faces[j]).any()
-                    or _points_in_triangles(np.asarray(uvs[j][:1], float), np.asarray(uvs[i], float),
-                                            faces[i]).any()):
-                return 0.0
-        S, T = segs[i], segs[j]
-        for k in range(0, len(S), 512):
-            best = min(best, float(_seg_seg_dist(S[k:k + 512], T).min()))
-        if best == 0.0:
-            return 0.0
-    return best
 
 
 # ------------------------------------------------------------------------------------------- API

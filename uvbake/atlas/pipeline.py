@@ -16,9 +16,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from uvbake.mesh.charts import Chart, check_chart, face_adjacency, split_charts
 from uvbake.errors import ChartError, InputError
 from uvbake.flatten.solve import _check_options, parameterize_charts
+from uvbake.mesh.charts import Chart, check_chart, split_charts
+from uvbake.mesh.topology import face_adjacency
 
 BAKE_MODES = (None, "checker", "vertex-colors")
 
@@ -57,8 +58,8 @@ class UnwrapResult:
         """Write the textured mesh (OBJ+MTL+PNG or GLB by extension) and optionally the JSON report."""
         import json
 
+        from uvbake.io.atomic import atomic_write
         from uvbake.io.export import save_textured
-        from uvbake.io import atomic_write
 
         image = self.image if self.image is not None else _blank(self.report["atlas"]["texture_size_px"])
         written = save_textured(path, self.V, self.F, self.corner_uv, image, vertex_colors=self.vertex_colors)
@@ -135,14 +136,14 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
                    continuation=continuation, callback=callback)
     note = progress or (lambda stage, done, total: None)
 
-    from uvbake.io import load_mesh
+    from uvbake.io.load import load_mesh
 
     t = time.perf_counter()
     mesh = load_mesh(source, face_labels=face_labels)
     V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
     # NaN or infinite coordinates are corrupt data, not a reconstruction artefact: refuse them
     # (naming the vertices) rather than silently dropping faces
-    from uvbake.mesh.charts import check_arrays
+    from uvbake.mesh.arrays import check_arrays
 
     check_arrays(V, F, where=str(mesh.source))
     repair_report = None
@@ -376,7 +377,7 @@ def _merge_back(V, F, charts, results, options, *, note, budget_s, known_invalid
     Each union starts from the two parts' maps, rigidly aligned on their shared seam vertices, and
     the pass stops after ``budget_s`` seconds.
     """
-    from uvbake.mesh.charts import ChartError
+    from uvbake.errors import ChartError
 
     deadline = time.perf_counter() + budget_s
     charts, results = list(charts), list(results)

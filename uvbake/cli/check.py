@@ -69,7 +69,7 @@ def load_uv_mesh(path):
     """
     import trimesh
 
-    from uvbake.validate.core import _row_ids
+    from uvbake.validate.candidates import _row_ids
 
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -108,7 +108,8 @@ def load_uv_mesh(path):
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``uvbake check``; return the exit status (0 valid, 1 invalid, 2 bad input)."""
-    from uvbake.validate.core import atomic_write_bytes, validate
+    from uvbake.io.atomic import atomic_write_bytes
+    from uvbake.validate.core import validate
 
     try:
         args = _parser().parse_args(argv)

@@ -51,9 +51,9 @@ def main(argv=None) -> int:
 def _run(args):
     import numpy as np
 
-    from uvbake.errors import InputError
-    from uvbake.io import load_mesh
     from uvbake.analysis.sensitivity import parse_alphas, sweep
+    from uvbake.errors import InputError
+    from uvbake.io.load import load_mesh
 
     alphas = parse_alphas(args.alphas)
     if args.max_iter < 0:

@@ -119,8 +119,8 @@ def output_path(mesh, output, *, suffix="_uv", ext=".obj"):
 
 
 def _unwrap_command(args):
-    from uvbake.errors import InputError
     from uvbake.atlas.pipeline import _check_texture, unwrap
+    from uvbake.errors import InputError
 
     t0 = time.perf_counter()
     if args.workers is not None and args.workers < 1:
@@ -189,7 +189,7 @@ def _unwrap_command(args):
     result.report["outputs"] = [str(p) for p in written] + ([str(report_path)] if report_path else [])
     result.report["timings"]["cli_total_s"] = time.perf_counter() - t0
     if report_path is not None:
-        from uvbake.io import atomic_write
+        from uvbake.io.atomic import atomic_write
 
         with atomic_write(report_path) as fh:
             json.dump(result.report, fh, indent=1)

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from uvbake.mesh.charts import topology
-from uvbake.flatten.energy import DistortionEnergy
 from uvbake.errors import InputError
+from uvbake.flatten.energy import DistortionEnergy
+from uvbake.mesh.topology import topology
 
 INITS = ("lscm", "tutte", "random")
 

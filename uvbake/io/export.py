@@ -20,25 +20,18 @@ file untouched. (Renames are atomic one at a time; the set of renames is not.)
 
 from __future__ import annotations
 
-import contextlib
 import io as _io
-import json
-import os
-import struct
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from uvbake.errors import InputError
-from uvbake.io import _default_mode, atomic_write, load_obj_uv, save_obj
+from uvbake.io.atomic import _staged, _write_bytes
+from uvbake.io.gltf import _load_glb, glb_bytes
+from uvbake.io.obj import load_obj_uv, save_obj
 
 #: Extensions save_textured writes.
 TEXTURED_EXTENSIONS = (".obj", ".glb")
-
-_GL_FLOAT, _GL_UNSIGNED_INT = 5126, 5125
-_GL_ARRAY_BUFFER, _GL_ELEMENT_ARRAY_BUFFER = 34962, 34963
-_GL_LINEAR, _GL_LINEAR_MIPMAP_LINEAR, _GL_CLAMP_TO_EDGE = 9729, 9987, 33071
 
 
 def save_textured(path, V, F, corner_uv, image, *, vertex_colors=None, name="uvbake") -> list:
@@ -179,32 +172,6 @@ def _png_bytes(image: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-@contextlib.contextmanager
-def _staged(finals):
-    """Yield temporary paths beside each final path; rename all into place only if the block succeeds."""
-    temps = []
-    try:
-        for final in finals:
-            fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
-            os.close(fd)
-            os.unlink(tmp)  # writers create it themselves (atomically)
-            temps.append(Path(tmp))
-        yield temps
-        for tmp, final in zip(temps, finals):
-            os.chmod(tmp, _default_mode(final))
-        for tmp, final in zip(temps, finals):
-            os.replace(tmp, final)
-    finally:
-        for tmp in temps:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-
-
-def _write_bytes(path: Path, data: bytes) -> None:
-    with atomic_write(path, "wb") as f:
-        f.write(data)
-
-
 # --------------------------------------------------------------------------------------------------
 # OBJ + MTL + PNG
 
@@ -228,156 +195,8 @@ def _save_obj(path, V, F, corner_uv, image, vertex_colors, name):
 # GLB
 
 
-def split_corners(F, corner_uv):
-    """Split vertices per distinct (vertex, UV) pair, as glTF needs one UV per vertex.
-
-    Returns
-    -------
-    source : (k,) int64 array
-        The original vertex of each new vertex.
-    uv : (k,2) float64 array
-        Its UV.
-    F_new : (m,3) int64 array
-        Triangles over the new vertices.
-    """
-    m = len(F)
-    keys = np.empty((3 * m, 3), dtype=np.float64)
-    keys[:, 0] = F.reshape(-1)
-    keys[:, 1:] = corner_uv.reshape(-1, 2)
-    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    order = np.argsort(first)  # new vertices in order of first use
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    corners = first[order]
-    return F.reshape(-1)[corners], corner_uv.reshape(-1, 2)[corners], rank[inverse].reshape(m, 3)
-
-
-def _vertex_normals(V, F):
-    """Area-weighted unit vertex normals; (0,0,1) where undefined."""
-    P = V[F]
-    fn = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    vn = np.zeros_like(V)
-    for k in range(3):
-        np.add.at(vn, F[:, k], fn)
-    norm = np.linalg.norm(vn, axis=1)
-    ok = norm > 0
-    vn[ok] /= norm[ok, None]
-    vn[~ok] = (0.0, 0.0, 1.0)
-    vn = vn.astype(np.float32)
-    return vn / np.linalg.norm(vn, axis=1, keepdims=True)
-
-
-def glb_bytes(V, F, corner_uv, image, *, vertex_colors=None, name="uvbake") -> bytes:
-    """The GLB file of a textured mesh (see :func:`save_textured`), as bytes."""
-    source, uv, F_new = split_corners(F, corner_uv)
-    pos = V[source].astype(np.float32)
-    attrs = {"POSITION": pos, "NORMAL": _vertex_normals(V, F)[source],
-             "TEXCOORD_0": np.column_stack([uv[:, 0], 1.0 - uv[:, 1]]).astype(np.float32)}
-    if vertex_colors is not None:
-        attrs["COLOR_0"] = vertex_colors[source].astype(np.float32)
-
-    blob = bytearray()
-    views, accessors = [], []
-
-    def add_view(data: bytes, target=None):
-        while len(blob) % 4:
-            blob.append(0)
-        view = {"buffer": 0, "byteOffset": len(blob), "byteLength": len(data)}
-        if target is not None:
-            view["target"] = target
-        blob.extend(data)
-        views.append(view)
-        return len(views) - 1
-
-    prim_attrs = {}
-    for key, arr in attrs.items():
-        acc = {"bufferView": add_view(arr.tobytes(), _GL_ARRAY_BUFFER), "componentType": _GL_FLOAT,
-               "count": len(arr), "type": f"VEC{arr.shape[1]}"}
-        if key == "POSITION":
-            acc["min"] = [float(x) for x in arr.min(axis=0)]
-            acc["max"] = [float(x) for x in arr.max(axis=0)]
-        accessors.append(acc)
-        prim_attrs[key] = len(accessors) - 1
-    idx = F_new.astype(np.uint32).reshape(-1)
-    accessors.append({"bufferView": add_view(idx.tobytes(), _GL_ELEMENT_ARRAY_BUFFER),
-                      "componentType": _GL_UNSIGNED_INT, "count": len(idx), "type": "SCALAR"})
-    image_view = add_view(_png_bytes(image))
-    while len(blob) % 4:
-        blob.append(0)
-
-    gltf = {
-        "asset": {"version": "2.0", "generator": "uvbake"},
-        "scene": 0,
-        "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0, "name": name}],
-        "meshes": [{"name": name, "primitives": [{"attributes": prim_attrs,
-                                                  "indices": len(accessors) - 1,
-                                                  "material": 0, "mode": 4}]}],
-        "materials": [{"name": name, "doubleSided": True,
-                       "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
-                                                "metallicFactor": 0.0, "roughnessFactor": 1.0}}],
-        "textures": [{"sampler": 0, "source": 0}],
-        "samplers": [{"magFilter": _GL_LINEAR, "minFilter": _GL_LINEAR_MIPMAP_LINEAR,
-                      "wrapS": _GL_CLAMP_TO_EDGE, "wrapT": _GL_CLAMP_TO_EDGE}],
-        "images": [{"bufferView": image_view, "mimeType": "image/png"}],
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{"byteLength": len(blob)}],
-    }
-    js = json.dumps(gltf, separators=(",", ":")).encode("utf-8")
-    js += b" " * (-len(js) % 4)
-    total = 12 + 8 + len(js) + 8 + len(blob)
-    return b"".join([struct.pack("<4sII", b"glTF", 2, total),
-                     struct.pack("<I4s", len(js), b"JSON"), js,
-                     struct.pack("<I4s", len(blob), b"BIN\x00"), bytes(blob)])
-
-
 def _save_glb(path, V, F, corner_uv, image, vertex_colors, name):
-    data = glb_bytes(V, F, corner_uv, image, vertex_colors=vertex_colors, name=name)
+    data = glb_bytes(V, F, corner_uv, _png_bytes(image), vertex_colors=vertex_colors, name=name)
     with _staged([path]) as (tmp,):
         _write_bytes(tmp, data)
     return [path]
-
-
-_COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
-              5126: np.float32}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-
-
-def _load_glb(path):
-    """V, F, corner_uv (v up) of the single primitive of a GLB written by uvbake."""
-    data = Path(path).read_bytes()
-    try:
-        magic, version, total = struct.unpack_from("<4sII", data, 0)
-        if magic != b"glTF" or version != 2:
-            raise ValueError("not a glTF 2.0 binary")
-        js_len, js_type = struct.unpack_from("<I4s", data, 12)
-        gltf = json.loads(data[20:20 + js_len])
-        bin_start = 20 + js_len + 8
-        bin_len, _ = struct.unpack_from("<I4s", data, 20 + js_len)
-        blob = data[bin_start:bin_start + bin_len]
-
-        def accessor(i):
-            acc = gltf["accessors"][i]
-            view = gltf["bufferViews"][acc["bufferView"]]
-            dtype = np.dtype(_COMPONENT[acc["componentType"]])
-            width = _WIDTH[acc["type"]]
-            start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
-            stride = view.get("byteStride", dtype.itemsize * width)
-            rows = [np.frombuffer(blob, dtype, width, start + r * stride) for r in range(acc["count"])] \
-                if stride != dtype.itemsize * width else \
-                [np.frombuffer(blob, dtype, acc["count"] * width, start)]
-            return np.concatenate(rows).reshape(acc["count"], width)
-
-        meshes = gltf.get("meshes", [])
-        if len(meshes) != 1 or len(meshes[0]["primitives"]) != 1:
-            raise ValueError("expected one mesh with one primitive")
-        prim = meshes[0]["primitives"][0]
-        V = accessor(prim["attributes"]["POSITION"]).astype(np.float64)
-        F = accessor(prim["indices"]).reshape(-1, 3).astype(np.int64)
-        uv = accessor(prim["attributes"]["TEXCOORD_0"]).astype(np.float64)
-    except (ValueError, KeyError, IndexError, struct.error) as exc:
-        raise InputError(f"{path}: cannot read as a uvbake GLB ({exc}); export it again") from None
-    uv[:, 1] = 1.0 - uv[:, 1]
-    return V, F, uv[F]

@@ -14,6 +14,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from uvbake.errors import ChartError, InputError
+from uvbake.mesh.arrays import _list, check_arrays
+from uvbake.mesh.topology import face_adjacency, nonmanifold_vertices, topology
 
 
 @dataclass
@@ -36,76 +38,6 @@ class Chart:
     face_index: np.ndarray
     label: int = -1
     name: str = "chart 0"
-
-
-@dataclass
-class Topology:
-    n_vertices: int
-    n_edges: int
-    n_faces: int
-    n_components: int
-    n_boundary_loops: int
-    genus: int
-    boundary_edges: np.ndarray        # (b,2) int, oriented as in their triangle
-
-
-def _list(ids, limit=5):
-    ids = [int(i) for i in np.asarray(ids).ravel()[:limit + 1]]
-    s = ", ".join(str(i) for i in ids[:limit])
-    return s + (", ..." if len(ids) > limit else "")
-
-
-def check_arrays(V, F, *, where="mesh"):
-    """Validate array shapes, types, finiteness and index range; return (V float64, F int64)."""
-    try:
-        V = np.asarray(V, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{where}: vertices are not numeric; pass V as an (n,3) float array") from None
-    F = np.asarray(F)
-    if V.ndim != 2 or V.shape[1] != 3:
-        raise InputError(f"{where}: vertices have shape {V.shape}, expected (n,3); pass 3D positions")
-    if F.ndim != 2 or F.shape[1] != 3:
-        raise InputError(f"{where}: faces have shape {F.shape}, expected (m,3); triangulate the mesh first")
-    if len(F) == 0:
-        raise InputError(f"{where}: the mesh has no triangles; pass a surface mesh, not a point cloud")
-    if not np.issubdtype(F.dtype, np.integer):
-        if np.issubdtype(F.dtype, np.floating) and np.all(np.isfinite(F)) and np.all(F == np.round(F)):
-            F = F.astype(np.int64)
-        else:
-            raise InputError(f"{where}: face indices are not integers; pass F as an (m,3) int array")
-    F = F.astype(np.int64, copy=False)
-    if F.min() < 0 or F.max() >= len(V):
-        bad = np.flatnonzero((F < 0).any(1) | (F >= len(V)).any(1))
-        raise InputError(f"{where}: triangles {_list(bad)} index vertices outside 0..{len(V) - 1}; fix the face list")
-    bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
-    if len(bad):
-        raise InputError(f"{where}: {len(bad)} vertices have NaN or infinite coordinates (vertices {_list(bad)}); "
-                         "remove or repair them before unwrapping")
-    return V, F
-
-
-def topology(F, n_vertices=None):
-    """Edge counts, components, boundary loops and genus of a manifold triangle mesh."""
-    F = np.asarray(F, dtype=np.int64)
-    n = int(F.max()) + 1 if n_vertices is None else n_vertices
-    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.sort(he, axis=1)
-    uniq, inv, cnt = np.unique(key[:, 0] * n + key[:, 1], return_inverse=True, return_counts=True)
-    boundary = he[cnt[inv] == 1]
-    used = np.unique(F)
-    adj = sp.coo_matrix((np.ones(len(he)), (he[:, 0], he[:, 1])), shape=(n, n))
-    n_comp_all, lab = connected_components(adj, directed=False)
-    n_comp = len(np.unique(lab[used]))
-    if len(boundary):
-        bv = np.unique(boundary)
-        badj = sp.coo_matrix((np.ones(len(boundary)), (boundary[:, 0], boundary[:, 1])), shape=(n, n))
-        _, blab = connected_components(badj, directed=False)
-        n_loops = len(np.unique(blab[bv]))
-    else:
-        n_loops = 0
-    chi = len(used) - len(uniq) + len(F)
-    genus = (2 * n_comp - chi - n_loops) // 2
-    return Topology(len(used), len(uniq), len(F), n_comp, n_loops, int(genus), boundary)
 
 
 def check_chart(V, F, *, name="chart 0"):
@@ -164,61 +96,6 @@ def check_chart(V, F, *, name="chart 0"):
         raise ChartError(f"{name}: has {topo.genus} handle(s) (genus {topo.genus}, {topo.n_boundary_loops} boundary "
                          "loops), not a disk with holes; cut each handle or split the chart with segment labels")
     return topo
-
-
-def nonmanifold_vertices(F, n):
-    """Vertices whose incident triangles form more than one edge-connected fan (bowties)."""
-    F = np.asarray(F, dtype=np.int64)
-    m = len(F)
-    corner = np.arange(3 * m).reshape(m, 3)       # corner (f, k) sits at vertex F[f, k]
-    # half-edge from corner k to corner k+1 of the same face
-    a = corner.ravel()
-    b = corner[:, [1, 2, 0]].ravel()
-    va, vb = F.ravel(), F[:, [1, 2, 0]].ravel()
-    key = np.minimum(va, vb) * n + np.maximum(va, vb)
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    same = np.flatnonzero(ks[1:] == ks[:-1])
-    i, j = order[same], order[same + 1]
-    # faces i and j share edge {va, vb}: join their corners at the same vertex
-    ca_i, cb_i = a[i], b[i]
-    ca_j, cb_j = a[j], b[j]
-    vi = va[i]
-    # in face j the edge may run either way; match corners by vertex
-    match_a_j = np.where(va[j] == vi, ca_j, cb_j)
-    match_b_j = np.where(va[j] == vi, cb_j, ca_j)
-    rows = np.concatenate([ca_i, cb_i])
-    cols = np.concatenate([match_a_j, match_b_j])
-    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
-    _, lab = connected_components(g, directed=False)
-    vc = np.unique(np.stack([F.ravel(), lab], axis=1), axis=0)
-    counts = np.bincount(vc[:, 0], minlength=n)
-    return np.flatnonzero(counts > 1)
-
-
-def face_adjacency(F, n_vertices=None, *, return_halfedges=False):
-    """Pairs of faces sharing an edge, and that edge.
-
-    Returns
-    -------
-    fi, fj : (k,) int arrays
-        Faces on either side of each shared edge (a non-manifold edge yields one pair per
-        consecutive pair of its faces).
-    edges : (k,2) int array
-        The shared edge's vertices, sorted.
-    hi, hj : (k,) int arrays, with ``return_halfedges``
-        The half-edge of each face along that edge, as ``3 f + k`` (from corner k to k+1).
-    """
-    F = np.asarray(F, dtype=np.int64)
-    n = int(F.max()) + 1 if n_vertices is None else n_vertices
-    key = np.sort(F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    ek = key[:, 0] * n + key[:, 1]
-    order = np.argsort(ek, kind="stable")
-    same = np.flatnonzero(ek[order][1:] == ek[order][:-1])
-    i, j = order[same], order[same + 1]
-    if return_halfedges:
-        return i // 3, j // 3, key[i], i, j
-    return i // 3, j // 3, key[i]
 
 
 def split_charts(V, F, labels=None, *, check=True):

@@ -26,8 +26,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
-from uvbake.mesh.charts import _list, check_arrays, face_adjacency, topology
 from uvbake.errors import ChartError, InputError
+from uvbake.mesh.arrays import _list, check_arrays
+from uvbake.mesh.topology import face_adjacency, topology
 
 __all__ = ["bisect", "split_where", "cut_to_disks", "seam_length"]
 
@@ -411,7 +412,7 @@ def cut_to_disks(V, F, *, max_charts=64):
     ------
     ChartError  for non-manifold edges or vertices (repair first), or when `max_charts` is exceeded.
     """
-    from uvbake.mesh.charts import nonmanifold_vertices
+    from uvbake.mesh.topology import nonmanifold_vertices
 
     V, F = check_arrays(V, F, where="cut_to_disks")
     n, m = len(V), len(F)

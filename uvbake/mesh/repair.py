@@ -40,9 +40,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from uvbake.mesh.charts import _list, nonmanifold_vertices
 from uvbake.errors import InputError
+from uvbake.mesh.arrays import _list
 from uvbake.mesh.cut import _corner_fans
+from uvbake.mesh.topology import nonmanifold_vertices
 
 __all__ = ["repair", "RepairResult"]
 

@@ -1,0 +1,169 @@
+"""OBJ reading of texture coordinates and exact OBJ writing."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from uvbake.errors import InputError
+from uvbake.io.atomic import atomic_write
+from uvbake.io.meshdata import _as_int, _make
+
+
+def load_obj_uv(path):
+    """Read an OBJ file exactly as written: mesh, texture coordinates and their faces.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    mesh : MeshData
+        ``v`` lines in file order (``v x y z r g b`` gives colours), ``f`` lines fan-triangulated.
+    uv : (k,2) float64 array or None
+        The ``vt`` lines.
+    uv_faces : (m,3) int64 array or None
+        Indices into ``uv`` per triangle corner, when every face has them.
+    """
+    name = str(path)
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{name}: file not found; check the path")
+    if path.is_dir():
+        raise InputError(f"{name}: is a directory, not a mesh file; pass the path of a mesh file inside it")
+    if path.stat().st_size == 0:
+        raise InputError(f"{name}: file is empty (0 bytes); export the mesh again")
+    verts, colors, uvs, tris, tri_uv = [], [], [], [], []
+    all_uv = True
+    try:
+        with open(path, encoding="utf-8", errors="strict") as f:
+            for line_no, line in enumerate(f, 1):
+                parts = line.split()
+                if not parts or parts[0].startswith("#"):
+                    continue
+                tag = parts[0]
+                if tag == "v":
+                    verts.append([float(t) for t in parts[1:4]])
+                    if len(verts[-1]) != 3:
+                        raise ValueError(f"line {line_no}: a 'v' line needs 3 coordinates")
+                    colors.append([float(t) for t in parts[4:7]] if len(parts) >= 7 else None)
+                elif tag == "vt":
+                    uvs.append([float(t) for t in parts[1:3]])
+                elif tag == "f":
+                    corners = [c.split("/") for c in parts[1:]]
+                    if len(corners) < 3:
+                        raise ValueError(f"line {line_no}: a face needs at least 3 corners")
+                    vi = [_obj_index(c[0], len(verts)) for c in corners]
+                    ti = [_obj_index(c[1], len(uvs)) if len(c) > 1 and c[1] else None
+                          for c in corners]
+                    for j in range(1, len(vi) - 1):
+                        tris.append([vi[0], vi[j], vi[j + 1]])
+                        tri_uv.append([ti[0], ti[j], ti[j + 1]])
+                    all_uv = all_uv and None not in ti
+    except (ValueError, UnicodeDecodeError) as exc:
+        reason = " ".join(str(exc).split())[:120]
+        raise InputError(f"{name}: cannot read as OBJ ({reason}); "
+                         "check that it is a valid OBJ file or export it again") from None
+    if not verts:
+        raise InputError(f"{name}: cannot read as OBJ (no 'v' lines); "
+                         "check that it is a valid OBJ file or export it again")
+    vertex_colors = None
+    if all(c is not None for c in colors):
+        vertex_colors = np.asarray(colors, dtype=np.float64)
+    F = np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+    mesh = _make(np.asarray(verts, dtype=np.float64), F, vertex_colors, None, name)
+    uv = np.asarray(uvs, dtype=np.float64).reshape(-1, 2) if uvs else None
+    uv_faces = None
+    if uv is not None and tri_uv and all_uv:
+        uv_faces = np.asarray(tri_uv, dtype=np.int64)
+        if uv_faces.min() < 0 or uv_faces.max() >= len(uv):
+            raise InputError(f"{name}: texture index out of range for {len(uv)} 'vt' lines; "
+                             "export the mesh again")
+    return mesh, uv, uv_faces
+
+
+def _obj_index(token: str, count: int) -> int:
+    """0-based index from an OBJ index (1-based, or negative = relative to the end so far)."""
+    i = int(token)
+    if i == 0:
+        raise ValueError("index 0 (OBJ indices start at 1)")
+    return i - 1 if i > 0 else count + i
+
+
+def save_obj(path, V, F, *, uv=None, uv_faces=None, vertex_colors=None, mtllib=None,
+             material=None) -> None:
+    """Write a triangle mesh as OBJ, atomically and with full float precision.
+
+    Parameters
+    ----------
+    path : str or Path
+    V : (n,3) float array
+    F : (m,3) int array, 0-based
+    uv : (k,2) float array, or (m,3,2) per-corner UVs, optional
+        Written as ``vt`` lines. Per-corner UVs (the atlas layout) need no ``uv_faces``.
+    uv_faces : (m,3) int array, optional
+        Indices into ``uv`` per corner. Defaults to ``F`` when ``k == n`` (per-vertex UVs).
+    vertex_colors : (n,3) float array in [0,1], optional
+        Written as ``v x y z r g b``.
+    mtllib, material : str, optional
+        Written as ``mtllib <mtllib>`` and ``usemtl <material>`` lines.
+
+    Numbers are written with ``%.17g``, so reading the file back gives bit-identical V and UVs.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F)
+    name = str(path)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise InputError(f"{name}: V must be (n,3), got shape {V.shape}; pass vertex positions")
+    if F.ndim != 2 or F.shape[1] != 3 or (F.size and (F.min() < 0 or F.max() >= len(V))):
+        raise InputError(f"{name}: F must be (m,3) with indices in 0..{len(V) - 1}; "
+                         "pass triangles indexing V")
+    F = _as_int(F, name, "F")
+    if uv is not None:
+        uv = np.asarray(uv, dtype=np.float64)
+        if uv.ndim == 3 and uv.shape == (len(F), 3, 2) and uv_faces is None:
+            uv = uv.reshape(-1, 2)
+            uv_faces = np.arange(len(uv)).reshape(-1, 3)
+        elif uv_faces is None and uv.shape == (len(V), 2):
+            uv_faces = F
+        if uv.ndim != 2 or uv.shape[1] != 2 or uv_faces is None:
+            raise InputError(f"{name}: uv must be (k,2) with uv_faces (m,3), (n,2) per vertex or "
+                             f"(m,3,2) per corner, got shape {uv.shape}; pass matching uv_faces")
+        uv_faces = _as_int(np.asarray(uv_faces), name, "uv_faces")
+        if uv_faces.shape != F.shape or uv_faces.min() < 0 or uv_faces.max() >= len(uv):
+            raise InputError(f"{name}: uv_faces must be (m,3)={F.shape} with indices in "
+                             f"0..{len(uv) - 1}; pass one uv index per face corner")
+    elif uv_faces is not None:
+        raise InputError(f"{name}: uv_faces given without uv; pass uv too")
+    if vertex_colors is not None:
+        vertex_colors = np.asarray(vertex_colors, dtype=np.float64)
+        if vertex_colors.shape != V.shape:
+            raise InputError(f"{name}: vertex_colors must be (n,3)={V.shape}, got "
+                             f"{vertex_colors.shape}; pass one RGB colour per vertex")
+
+    with atomic_write(path, "w") as f:
+        f.write("# written by uvbake\n")
+        if mtllib:
+            f.write(f"mtllib {mtllib}\n")
+        rows = V if vertex_colors is None else np.hstack([V, vertex_colors])
+        _write_rows(f, "v", rows, "%.17g")
+        if uv is not None:
+            _write_rows(f, "vt", uv, "%.17g")
+        if material:
+            f.write(f"usemtl {material}\n")
+        if uv is None:
+            _write_rows(f, "f", F + 1, "%d")
+        else:
+            corners = np.stack([F + 1, uv_faces + 1], axis=-1).reshape(len(F), 6)
+            _write_rows(f, "f", corners, "%d/%d")
+
+
+def _write_rows(f, tag: str, rows: np.ndarray, fmt: str) -> None:
+    if len(rows) == 0:
+        return
+    per_row = rows.shape[1] // fmt.count("%")
+    line = tag + (" " + fmt) * per_row + "\n"
+    flat = rows.reshape(len(rows), -1)
+    f.write("".join(line % tuple(r) for r in flat.tolist()))

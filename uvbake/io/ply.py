@@ -1,0 +1,128 @@
+"""PLY reading (ASCII and binary) into named element arrays, any property layout."""
+
+from __future__ import annotations
+
+import numpy as np
+
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+    "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+
+
+def read_ply_elements(path) -> dict:
+    """Parse a PLY file (ASCII or binary, any list lengths) into ``{element: {property: values}}``.
+
+    Scalar properties become arrays; list properties become an (count,k) array when every row has
+    the same length, else a list of arrays. This is uvbake's own reader, used when trimesh cannot
+    read a file (binary PLY with mixed polygon sizes) or drops a face property.
+    """
+    with open(path, "rb") as f:
+        lines = []
+        while True:
+            line = f.readline()
+            if not line:
+                raise ValueError("no end_header line")
+            line = line.decode("ascii", "replace").strip()
+            lines.append(line)
+            if line == "end_header":
+                break
+        body = f.read()
+    if not lines or lines[0] != "ply":
+        raise ValueError("does not start with 'ply'")
+    fmt, elements = None, []
+    for line in lines[1:]:
+        parts = line.split()
+        if parts[:1] == ["format"]:
+            fmt = parts[1]
+        elif parts[:1] == ["element"]:
+            elements.append((parts[1], int(parts[2]), []))
+        elif parts[:1] == ["property"]:
+            if parts[1] == "list":
+                elements[-1][2].append((parts[4], _PLY_TYPES[parts[2]], _PLY_TYPES[parts[3]]))
+            else:
+                elements[-1][2].append((parts[2], _PLY_TYPES[parts[1]], None))
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise ValueError(f"unknown format {fmt!r}")
+    if fmt == "ascii":
+        return _ply_ascii(body, elements)
+    return _ply_binary(body, elements, "<" if fmt == "binary_little_endian" else ">")
+
+
+def _ply_ascii(body: bytes, elements) -> dict:
+    tokens = body.split()
+    pos, out = 0, {}
+    for name, count, props in elements:
+        columns = {p[0]: [] for p in props}
+        for _ in range(count):
+            for prop, dtype, item in props:
+                if item is None:
+                    columns[prop].append(tokens[pos])
+                    pos += 1
+                else:
+                    k = int(tokens[pos])
+                    columns[prop].append(np.array(tokens[pos + 1: pos + 1 + k], dtype=float).astype(item))
+                    pos += 1 + k
+        out[name] = {p[0]: _ply_column(columns[p[0]], p) for p in props}
+    return out
+
+
+def _ply_binary(body: bytes, elements, endian: str) -> dict:
+    pos, out = 0, {}
+    for name, count, props in elements:
+        fixed = []  # try one record layout, using the first row's list lengths
+        probe = pos
+        for prop, dtype, item in props:
+            if item is None:
+                fixed.append((prop, endian + dtype))
+                probe += np.dtype(dtype).itemsize
+            else:
+                k = int(np.frombuffer(body, endian + dtype, 1, probe)[0]) if count else 0
+                fixed += [(f"{prop}__n", endian + dtype), (prop, endian + item, (k,))]
+                probe += np.dtype(dtype).itemsize + k * np.dtype(item).itemsize
+        layout = np.dtype(fixed)
+        if pos + count * layout.itemsize <= len(body):
+            data = np.frombuffer(body, layout, count, pos)
+            lists = [p[0] for p in props if p[2] is not None]
+            if all(np.all(data[f"{p}__n"] == data.dtype[p].shape[0]) for p in lists):
+                out[name] = {p[0]: np.array(data[p[0]]) for p in props}
+                pos += count * layout.itemsize
+                continue
+        columns = {p[0]: [] for p in props}  # rows of different lengths: walk them
+        for _ in range(count):
+            for prop, dtype, item in props:
+                size = np.dtype(dtype).itemsize
+                value = np.frombuffer(body, endian + dtype, 1, pos)[0]
+                pos += size
+                if item is None:
+                    columns[prop].append(value)
+                else:
+                    k = int(value)
+                    columns[prop].append(np.frombuffer(body, endian + item, k, pos).copy())
+                    pos += k * np.dtype(item).itemsize
+        out[name] = {p[0]: _ply_column(columns[p[0]], p) for p in props}
+    return out
+
+
+def _ply_column(values, prop):
+    name, dtype, item = prop
+    if item is None:
+        return np.array(values).astype(dtype)
+    if values and all(len(v) == len(values[0]) for v in values):
+        return np.array(values, dtype=item).reshape(len(values), -1)
+    return values
+
+
+def _ply_face_property_names(path) -> list:
+    names, in_face = [], False
+    with open(path, "rb") as f:
+        for raw_line in f:
+            parts = raw_line.decode("ascii", "replace").split()
+            if parts[:1] == ["end_header"]:
+                break
+            if parts[:1] == ["element"]:
+                in_face = parts[1:2] == ["face"]
+            elif parts[:1] == ["property"] and in_face:
+                names.append(parts[-1])
+    return names

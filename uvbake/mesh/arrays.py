@@ -1,0 +1,42 @@
+"""Checks of mesh arrays."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uvbake.errors import InputError
+
+
+def _list(ids, limit=5):
+    ids = [int(i) for i in np.asarray(ids).ravel()[:limit + 1]]
+    s = ", ".join(str(i) for i in ids[:limit])
+    return s + (", ..." if len(ids) > limit else "")
+
+
+def check_arrays(V, F, *, where="mesh"):
+    """Validate array shapes, types, finiteness and index range; return (V float64, F int64)."""
+    try:
+        V = np.asarray(V, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: vertices are not numeric; pass V as an (n,3) float array") from None
+    F = np.asarray(F)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise InputError(f"{where}: vertices have shape {V.shape}, expected (n,3); pass 3D positions")
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise InputError(f"{where}: faces have shape {F.shape}, expected (m,3); triangulate the mesh first")
+    if len(F) == 0:
+        raise InputError(f"{where}: the mesh has no triangles; pass a surface mesh, not a point cloud")
+    if not np.issubdtype(F.dtype, np.integer):
+        if np.issubdtype(F.dtype, np.floating) and np.all(np.isfinite(F)) and np.all(F == np.round(F)):
+            F = F.astype(np.int64)
+        else:
+            raise InputError(f"{where}: face indices are not integers; pass F as an (m,3) int array")
+    F = F.astype(np.int64, copy=False)
+    if F.min() < 0 or F.max() >= len(V):
+        bad = np.flatnonzero((F < 0).any(1) | (F >= len(V)).any(1))
+        raise InputError(f"{where}: triangles {_list(bad)} index vertices outside 0..{len(V) - 1}; fix the face list")
+    bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
+    if len(bad):
+        raise InputError(f"{where}: {len(bad)} vertices have NaN or infinite coordinates (vertices {_list(bad)}); "
+                         "remove or repair them before unwrapping")
+    return V, F
