@@ -37,18 +37,19 @@ def test_reaches_the_gradient_tolerance_and_reports_honestly():
     energy, start = problem(0.5)
     x0 = energy.to_vector(start)
     x, info = lbfgs(energy, x0, uv_fixed=start, tol=1e-9, max_iter=5000)
-    assert set(info) >= {"energy", "grad_norm", "iterations", "converged", "history", "stop_reason", "evaluations"}
+    assert all(hasattr(info, k) for k in ("energy", "grad_norm", "iterations", "converged", "history", "stop_reason",
+                                          "evaluations"))
     f, g = energy.value_and_gradient(energy.to_uv(x, start))
     # the record describes the returned point, under the same rule as LM
-    assert info["converged"] and info["stop_reason"] == "converged"
+    assert info.converged and info.stop_reason == "converged"
     assert np.linalg.norm(g) < 1e-9
-    assert info["grad_norm"] == pytest.approx(np.linalg.norm(g), rel=1e-12)
-    assert info["energy"] == pytest.approx(f, rel=1e-12)
-    h = info["history"]
+    assert info.grad_norm == pytest.approx(np.linalg.norm(g), rel=1e-12)
+    assert info.energy == pytest.approx(f, rel=1e-12)
+    h = info.history
     assert h[0] == pytest.approx(energy.value(start), rel=1e-14)
-    assert len(h) == info["iterations"] + 1
+    assert len(h) == info.iterations + 1
     assert np.all(np.diff(h) <= 1e-12 * h[0])          # only improvements count as iterations
-    assert info["evaluations"] >= info["iterations"] + 1
+    assert info.evaluations >= info.iterations + 1
 
 
 def test_same_minimum_as_levenberg_marquardt():
@@ -56,8 +57,8 @@ def test_same_minimum_as_levenberg_marquardt():
     x0 = energy.to_vector(start)
     x_lm, i_lm = levenberg_marquardt(energy, x0, uv_fixed=start, tol=1e-10)
     x_lb, i_lb = lbfgs(energy, x0, uv_fixed=start, tol=1e-9, max_iter=5000)
-    assert i_lm["converged"] and i_lb["converged"]
-    assert i_lb["energy"] == pytest.approx(i_lm["energy"], rel=1e-10)
+    assert i_lm.converged and i_lb.converged
+    assert i_lb.energy == pytest.approx(i_lm.energy, rel=1e-10)
     # F is invariant to rigid motions only; after removing them the maps coincide
     from uvbake.analysis.crosscheck import rigid_align
 
@@ -75,19 +76,19 @@ def test_callback_protocol_and_stop():
         return d["iteration"] >= 5
 
     x, info = lbfgs(energy, energy.to_vector(start), uv_fixed=start, tol=1e-12, callback=cb)
-    assert info["stop_reason"] == "stopped by callback" and info["iterations"] == 5
+    assert info.stop_reason == "stopped by callback" and info.iterations == 5
     assert [d["iteration"] for d in seen] == [1, 2, 3, 4, 5]
     assert all({"iteration", "energy", "grad_norm"} <= set(d) for d in seen)
-    assert [d["energy"] for d in seen] == pytest.approx(list(info["history"][1:]))
+    assert [d["energy"] for d in seen] == pytest.approx(list(info.history[1:]))
 
 
 def test_iteration_cap_returns_best_point():
     energy, start = problem(0.8)
     x, info = lbfgs(energy, energy.to_vector(start), uv_fixed=start, tol=1e-14, max_iter=7)
-    assert info["iterations"] == 7 and info["stop_reason"] == "max_iter" and not info["converged"]
+    assert info.iterations == 7 and info.stop_reason == "max_iter" and not info.converged
     f = energy.value(energy.to_uv(x, start))
-    assert f == pytest.approx(info["history"].min(), rel=1e-12)
-    assert f < info["history"][0]
+    assert f == pytest.approx(info.history.min(), rel=1e-12)
+    assert f < info.history[0]
 
 
 def test_converged_start_and_non_finite_start():
@@ -95,11 +96,11 @@ def test_converged_start_and_non_finite_start():
     x0 = energy.to_vector(start)
     x, _ = levenberg_marquardt(energy, x0, uv_fixed=start, tol=1e-11)
     x1, info = lbfgs(energy, x, uv_fixed=start, tol=1e-8)
-    assert info["iterations"] == 0 and info["stop_reason"] == "converged" and np.array_equal(x1, x)
+    assert info.iterations == 0 and info.stop_reason == "converged" and np.array_equal(x1, x)
     bad = x0.copy()
     bad[3] = np.nan
     _, info = lbfgs(energy, bad, uv_fixed=start)
-    assert info["stop_reason"] == "non-finite start" and not info["converged"]
+    assert info.stop_reason == "non-finite start" and not info.converged
 
 
 def test_parameterize_backend_lbfgs_record_and_pinned_alpha0():
@@ -122,8 +123,8 @@ def test_preconditioners_change_the_path_not_the_minimum(kind):
     x0 = energy.to_vector(start)
     x_lm, i_lm = levenberg_marquardt(energy, x0, uv_fixed=start, tol=1e-10)
     x, info = lbfgs(energy, x0, uv_fixed=start, tol=1e-9, max_iter=20000, precondition=kind)
-    assert info["converged"] and info["preconditioner"].startswith(kind)
-    assert info["energy"] == pytest.approx(i_lm["energy"], rel=1e-10)
+    assert info.converged and info.extra["preconditioner"].startswith(kind)
+    assert info.energy == pytest.approx(i_lm.energy, rel=1e-10)
 
 
 def test_bad_preconditioner_name():

@@ -24,8 +24,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from uvbake.errors import InputError, SolverError
+from uvbake.flatten.solvers.linalg import is_positive_definite
 
 #: Second-order test: H + SADDLE_SHIFT * max(diag H) * I must be positive definite at a minimum
 #: (the gauge directions give eigenvalues ~1e-14 max diag H, a real saddle -1e-2 and below).
@@ -150,38 +152,8 @@ def is_local_minimum(V, F, uv, alpha):
 
 
 def _positive_definite(H, shift):
-    """Whether H + shift I is positive definite, by a Cholesky factorisation that fails when it is not.
-
-    Not :mod:`uvbake.flatten.solvers.linalg`: CHOLMOD's default mode picks a simplicial LDL^T for small
-    matrices, which succeeds on indefinite matrices (negative entries in D), so its "factor
-    succeeded" does not mean positive definite. Supernodal CHOLMOD is a true LL^T; without
-    scikit-sparse, SuperLU without pivoting and the signs of its pivots.
-    """
-    import warnings
-
-    import scipy.sparse as sp
-
-    M = (H + shift * sp.identity(H.shape[0], format="csc")).tocsc()
-    try:
-        from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
-    except ImportError:
-        import scipy.sparse.linalg as spla
-
-        try:
-            lu = spla.splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                           options=dict(SymmetricMode=True))
-        except RuntimeError:
-            return False
-        if not np.array_equal(lu.perm_r, lu.perm_c):
-            return None                      # pivoting happened: the pivot signs say nothing
-        return bool(np.all(lu.U.diagonal() > 0))
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            cholesky(M, mode="supernodal")
-    except (CholmodNotPositiveDefiniteError, Warning):
-        return False
-    return True
+    """Whether H + shift I is positive definite (:func:`uvbake.flatten.solvers.linalg.is_positive_definite`)."""
+    return is_positive_definite(H + shift * sp.identity(H.shape[0], format="csc"))
 
 
 def cross_check(V, F, *, alpha=0.5, init="lscm", tol=1e-8, max_iter=1000, lbfgs_max_iter=None, seed=0,

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uvbake.errors import ChartError, InputError
-from uvbake.flatten.solve import _check_options, parameterize_charts
+from uvbake.flatten.options import DEFAULTS, SolveOptions
+from uvbake.flatten.solve import parameterize_charts
 from uvbake.mesh.charts import Chart, check_chart, split_charts
 from uvbake.mesh.topology import face_adjacency
 
@@ -74,9 +75,10 @@ def _blank(size):
     return np.full((size, size, 3), 255, np.uint8)
 
 
-def unwrap(source, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1000, seed=0,
+def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS.backend, tol=DEFAULTS.tol,
+           max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed,
            face_labels=None, texture_size_px=1024, gutter_px=4, bake=None, auto_cut=True,
-           repair=True, guarantee=True, max_splits=256, continuation=True, workers=None,
+           repair=True, guarantee=True, max_splits=256, continuation=DEFAULTS.continuation, workers=None,
            progress=None, callback=None):
     """Unwrap a mesh into a validated texture atlas.
 
@@ -128,12 +130,12 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
             auto_cut, repair, guarantee, max_splits, continuation, workers, progress, callback):
     t0 = time.perf_counter()
     timings = {}
-    alpha = _check_options(alpha, init, backend, tol, max_iter)
+    solve_options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
+                                 continuation=continuation)
     if bake not in BAKE_MODES:
         raise InputError(f"bake={bake!r} is not one of None, 'checker', 'vertex-colors'")
-    _check_texture(texture_size_px, gutter_px)
-    options = dict(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
-                   continuation=continuation, callback=callback)
+    check_texture(texture_size_px, gutter_px)
+    options = dict(options=solve_options, callback=callback)
     note = progress or (lambda stage, done, total: None)
 
     from uvbake.io.load import load_mesh
@@ -221,7 +223,7 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
         "input": mesh.source,
         "vertices": int(len(V)),
         "triangles": int(len(F)),
-        "options": {k: v for k, v in options.items() if k != "callback"}
+        "options": solve_options.report()
         | dict(texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake, auto_cut=auto_cut,
                repair=repair, guarantee=guarantee),
         "repair": repair_report,
@@ -245,7 +247,7 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     return UnwrapResult(V, F, corner_uv, charts, results, chart_ids, image, colors, report)
 
 
-def _check_texture(texture_size_px, gutter_px):
+def check_texture(texture_size_px, gutter_px):
     if isinstance(texture_size_px, bool) or not isinstance(texture_size_px, (int, np.integer)) \
             or not 16 <= texture_size_px <= 16384:
         raise InputError(f"texture_size_px={texture_size_px!r} must be a whole number of texels from 16 to 16384")

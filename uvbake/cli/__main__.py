@@ -2,6 +2,6 @@
 
 import sys
 
-from uvbake.cli.unwrap import main
+from uvbake.cli import main
 
 sys.exit(main())

@@ -13,27 +13,25 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 
 import numpy as np
 
+from uvbake.cli.common import EXIT_FAILED, EXIT_OK, ArgumentParser
+from uvbake.cli.common import run as run_command
 from uvbake.errors import InputError
+from uvbake.io.atomic import atomic_write_bytes
+from uvbake.validate.candidates import _row_ids
+from uvbake.validate.core import validate
 
-__all__ = ["main", "load_uv_mesh"]
-
-EXIT_VALID, EXIT_INVALID, EXIT_BAD_INPUT = 0, 1, 2
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # argparse exits with 2 already; keep it to one line
-        raise InputError(f"{message}; see `uvbake check --help`")
+__all__ = ["main", "run", "add_arguments", "load_uv_mesh"]
 
 
-def _parser():
-    p = _Parser(
-        prog="uvbake check",
-        description="Check that the UVs of a textured mesh are bijective (no flips, no overlaps).",
-    )
+
+DESCRIPTION = "Check that the UVs of a textured mesh are bijective (no flips, no overlaps)."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``uvbake check PATH ...``."""
     p.add_argument(
         "path",
         help="mesh with texture coordinates: .obj (vt), .glb/.gltf (TEXCOORD_0), .ply (s,t or u,v)",
@@ -48,10 +46,9 @@ def _parser():
         action="store_true",
         help="overlaps that claim no common pixel at --resolution do not fail the check",
     )
-    return p
 
 
-def load_uv_mesh(path):
+def load_uv_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     """Load the UVs of a textured mesh, welded for validation.
 
     Vertices are welded when both their 3D position and their UV are bit-identical, inside each
@@ -68,8 +65,6 @@ def load_uv_mesh(path):
     F : (m,3) int64
     """
     import trimesh
-
-    from uvbake.validate.candidates import _row_ids
 
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -106,37 +101,25 @@ def load_uv_mesh(path):
     return np.concatenate(uvs), np.concatenate(faces)
 
 
+def run(args: argparse.Namespace) -> int:
+    """``uvbake check``: the exit status is 0 when the UVs are bijective, 1 when they are not."""
+    uv, F = load_uv_mesh(args.path)
+    for out in (args.image, args.json):
+        if out and not os.path.isdir(os.path.dirname(os.path.abspath(out))):
+            raise InputError(f"folder of {out} does not exist; create it or choose another path")
+    # per-corner UVs make it an atlas (raster on [0,1]^2 when the UVs lie there); F keeps the welding
+    report = validate(uv[F], F, resolution_px=args.resolution, allow_subpixel=args.allow_subpixel)
+    if args.image:
+        report.save_image(args.image)
+    if args.json:
+        doc = {"path": os.fspath(args.path), **report.to_dict()}
+        atomic_write_bytes(args.json, (json.dumps(doc, indent=1) + "\n").encode())
+    print(f"{args.path}: {report.summary()}")
+    return EXIT_OK if report.valid else EXIT_FAILED
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``uvbake check``; return the exit status (0 valid, 1 invalid, 2 bad input)."""
-    from uvbake.io.atomic import atomic_write_bytes
-    from uvbake.validate.core import validate
-
-    try:
-        args = _parser().parse_args(argv)
-        uv, F = load_uv_mesh(args.path)
-        for out in (args.image, args.json):
-            if out and not os.path.isdir(os.path.dirname(os.path.abspath(out))):
-                raise InputError(f"folder of {out} does not exist; create it or choose another path")
-        # per-corner UVs make it an atlas (raster on [0,1]^2 when the UVs lie there); F keeps the welding
-        report = validate(
-            uv[F], F, resolution_px=args.resolution, allow_subpixel=args.allow_subpixel
-        )
-        if args.image:
-            report.save_image(args.image)
-        if args.json:
-            doc = {"path": os.fspath(args.path), **report.to_dict()}
-            atomic_write_bytes(args.json, (json.dumps(doc, indent=1) + "\n").encode())
-    except SystemExit as exc:  # --help
-        return int(exc.code or 0)
-    except InputError as exc:
-        print(f"uvbake check: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except OSError as exc:
-        print(f"uvbake check: error: {exc.strerror or exc}: {exc.filename or ''}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    print(f"{args.path}: {report.summary()}")
-    return EXIT_VALID if report.valid else EXIT_INVALID
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    parser = ArgumentParser(prog="uvbake check", description=DESCRIPTION)
+    add_arguments(parser)
+    return run_command("uvbake check", lambda: run(parser.parse_args(argv)))

@@ -3,58 +3,56 @@
 Solves every chart of the mesh at every alpha and reports F*(alpha) (summed over charts: charts are
 independent, so the mesh's optimum is the sum of theirs), iterations, flips, overlaps and the relative
 sensitivity S = (alpha / F*) dF*/dalpha (paper section 3.6, Eq. 10). A table goes to stdout; the plot,
-CSV and JSON are written atomically. Errors are one line on stderr and exit code 2.
+CSV and JSON are written atomically. Exit codes: :mod:`uvbake.cli.common`.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
+import numpy as np
 
-def _parser():
-    p = argparse.ArgumentParser(
-        prog="uvbake sweep",
-        description="alpha sensitivity study: solve every alpha, report F*(alpha) and S(alpha) (Eq. 10).")
+from uvbake.analysis.sensitivity import parse_alphas, require_matplotlib, sweep
+from uvbake.cli.common import ArgumentParser
+from uvbake.cli.common import run as run_command
+from uvbake.errors import InputError
+from uvbake.flatten.options import BACKENDS, DEFAULTS
+from uvbake.flatten.starts import INITS
+from uvbake.io.load import load_mesh
+
+DESCRIPTION = "alpha sensitivity study: solve every alpha, report F*(alpha) and S(alpha) (Eq. 10)."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``uvbake sweep MESH ...``."""
     p.add_argument("mesh", help="mesh file (PLY, OBJ, OFF, GLB, STL); charts from face labels and connectivity")
     p.add_argument("--alphas", default="0:1:0.1",
                    help="start:stop:step (stop included) or a comma list, values in [0, 1] (default 0:1:0.1)")
-    p.add_argument("--init", default="lscm", choices=["lscm", "tutte", "random"])
-    p.add_argument("--backend", default="lm", choices=["lm", "lbfgs"])
+    p.add_argument("--init", default=DEFAULTS.init, choices=INITS)
+    p.add_argument("--backend", default=DEFAULTS.backend, choices=BACKENDS)
     p.add_argument("--warm-start", action="store_true",
                    help="start each alpha from the previous alpha's solution (reported per alpha)")
-    p.add_argument("--tol", type=float, default=1e-8)
-    p.add_argument("--max-iter", type=int, default=1000)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tol", type=float, default=DEFAULTS.tol)
+    p.add_argument("--max-iter", type=int, default=DEFAULTS.max_iter)
+    p.add_argument("--seed", type=int, default=DEFAULTS.seed)
     p.add_argument("--no-overlaps", action="store_true", help="skip the overlap count (faster)")
     p.add_argument("--plot", metavar="PNG", help="write the convergence and sensitivity plot here")
     p.add_argument("--csv", metavar="CSV", help="write the numbers as CSV")
     p.add_argument("--json", metavar="JSON", help="write the numbers (and histories) as JSON")
     p.add_argument("-q", "--quiet", action="store_true", help="no table on stdout")
-    return p
 
 
-def main(argv=None) -> int:
-    from uvbake.errors import UvbakeError
-
-    args = _parser().parse_args(argv)
-    try:
-        return _run(args)
-    except UvbakeError as exc:
-        print(f"uvbake sweep: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("uvbake sweep: interrupted", file=sys.stderr)
-        return 130
+def main(argv: list[str] | None = None) -> int:
+    """Run ``uvbake sweep``; return the exit status (0 done, 2 bad input)."""
+    parser = ArgumentParser(prog="uvbake sweep", description=DESCRIPTION)
+    add_arguments(parser)
+    return run_command("uvbake sweep", lambda: run(parser.parse_args(argv)))
 
 
-def _run(args):
-    import numpy as np
-
-    from uvbake.analysis.sensitivity import parse_alphas, sweep
-    from uvbake.errors import InputError
-    from uvbake.io.load import load_mesh
-
+def run(args: argparse.Namespace) -> int:
+    """``uvbake sweep``: solve every alpha, print the table, write the files asked for."""
     alphas = parse_alphas(args.alphas)
     if args.max_iter < 0:
         raise InputError(f"--max-iter {args.max_iter} must be a non-negative integer")
@@ -63,14 +61,10 @@ def _run(args):
     for opt in ("plot", "csv", "json"):
         path = getattr(args, opt)
         if path:
-            import os
-
             folder = os.path.dirname(os.path.abspath(path))
             if not os.path.isdir(folder):
                 raise InputError(f"--{opt} {path}: folder {folder} does not exist; create it or pick another path")
     if args.plot:
-        from uvbake.analysis.sensitivity import require_matplotlib
-
         require_matplotlib()              # before a long sweep, not after
     mesh = load_mesh(args.mesh)
 
@@ -101,6 +95,3 @@ def _run(args):
         res.plot(args.plot, title=title)
     return 0
 
-
-if __name__ == "__main__":      # pragma: no cover
-    sys.exit(main())

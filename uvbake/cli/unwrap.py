@@ -1,55 +1,65 @@
-"""The ``uvbake`` command.
+"""``uvbake [unwrap] MESH``: unwrap a mesh into a textured atlas (the default command).
 
     uvbake MESH [--alpha A] [--bake checker.png] [-o OUT.obj|OUT.glb] [--json R.json] [...]
-    uvbake check MESH [...]     validate the UVs of a textured mesh (see ``uvbake check --help``)
-    uvbake sweep MESH [...]     alpha sensitivity study (see ``uvbake sweep --help``)
+    uvbake unwrap MESH [...]    the same; needed only for a mesh file named like a command
 
-Errors print one line and exit non-zero (2 for bad input, 1 for a failed solve, 3 for a bug), never a
-traceback (set UVBAKE_DEBUG=1 to see one). Output files are written atomically and never replace the
-input.
+Output files are written atomically and never replace the input. Exit codes: :mod:`uvbake.cli.common`.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
-SUBCOMMANDS = {"check": "uvbake.cli.check", "sweep": "uvbake.cli.sweep"}
+from uvbake.analysis.crosscheck import cross_check_charts
+from uvbake.atlas.pipeline import check_texture, unwrap
+from uvbake.errors import InputError
+from uvbake.flatten.options import BACKENDS, DEFAULTS
+from uvbake.flatten.starts import INITS
+from uvbake.io.atomic import atomic_write
+from uvbake.io.export import save_png
+from uvbake.render import preview
+
+DESCRIPTION = (
+    "Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle\n"
+    "distortion minimiser (Levenberg-Marquardt), split charts until no triangle is flipped\n"
+    "or overlapping, pack them, bake a texture and write the textured mesh and a report.\n"
+    "Charts come from a per-face segment label (PLY face property 'segment', 'label', ...)\n"
+    "and connected components."
+)
+
+EPILOG = (
+    "examples:\n"
+    "  uvbake scene.ply --alpha 0.5 --bake checker.png\n"
+    "  uvbake scan.ply -o scan.glb --bake colors.png --texture-size 2048 --json report.json\n"
+    "other commands: 'uvbake check MESH' validates a textured mesh's UVs; "
+    "'uvbake sweep MESH --alphas 0:1:0.1' studies the alpha sensitivity; "
+    "'uvbake unwrap MESH' unwraps a mesh file named like a command."
+)
 
 
-def _parser():
-    p = argparse.ArgumentParser(
-        prog="uvbake",
-        description="Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle\n"
-                    "distortion minimiser (Levenberg-Marquardt), split charts until no triangle is flipped\n"
-                    "or overlapping, pack them, bake a texture and write the textured mesh and a report.\n"
-                    "Charts come from a per-face segment label (PLY face property 'segment', 'label', ...)\n"
-                    "and connected components.",
-        epilog="examples:\n"
-               "  uvbake scene.ply --alpha 0.5 --bake checker.png\n"
-               "  uvbake scan.ply -o scan.glb --bake colors.png --texture-size 2048 --json report.json\n"
-               "other commands: 'uvbake check MESH' validates a textured mesh's UVs; "
-               "'uvbake sweep MESH --alphas 0:1:0.1' studies the alpha sensitivity.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``uvbake [unwrap] MESH ...``."""
     p.add_argument("mesh", help="input mesh (PLY, OBJ, OFF, GLB/GLTF, STL)")
     p.add_argument("-o", "--output", help="textured mesh to write, .obj (with .mtl and .png) or .glb "
                                           "(default: MESH_uv.obj next to the input)")
     g = p.add_argument_group("flattening")
-    g.add_argument("--alpha", type=float, default=0.5,
-                   help="weight of area preservation in [0, 1]; 1 - alpha weighs angles (default 0.5)")
-    g.add_argument("--init", default="lscm", choices=["lscm", "tutte", "random"], help="start map (default lscm)")
-    g.add_argument("--backend", default="lm", choices=["lm", "lbfgs"],
+    g.add_argument("--alpha", type=float, default=DEFAULTS.alpha,
+                   help=f"weight of area preservation in [0, 1]; 1 - alpha weighs angles (default {DEFAULTS.alpha})")
+    g.add_argument("--init", default=DEFAULTS.init, choices=INITS, help=f"start map (default {DEFAULTS.init})")
+    g.add_argument("--backend", default=DEFAULTS.backend, choices=BACKENDS,
                    help="lm: Levenberg-Marquardt, full Hessian (default); lbfgs: nlopt L-BFGS")
     g.add_argument("--cross-check", action="store_true",
                    help="also solve every chart with the other backend and fail if they disagree")
-    g.add_argument("--tol", type=float, default=1e-8, help="scale-free gradient norm to reach (default 1e-8)")
-    g.add_argument("--max-iter", type=int, default=1000, help="iteration cap per chart (default 1000)")
-    g.add_argument("--seed", type=int, default=0, help="seed of --init random (default 0)")
+    g.add_argument("--tol", type=float, default=DEFAULTS.tol,
+                   help=f"scale-free gradient norm to reach (default {DEFAULTS.tol:g})")
+    g.add_argument("--max-iter", type=int, default=DEFAULTS.max_iter,
+                   help=f"iteration cap per chart (default {DEFAULTS.max_iter})")
+    g.add_argument("--seed", type=int, default=DEFAULTS.seed, help=f"seed of --init random (default {DEFAULTS.seed})")
     g.add_argument("--workers", type=int, default=None, help="charts solved in parallel (default: CPU count)")
     g = p.add_argument_group("guarantees")
     g.add_argument("--no-auto-cut", action="store_true",
@@ -69,44 +79,10 @@ def _parser():
                                                     "into this PNG (Open3D offscreen, headless)")
     p.add_argument("--json", metavar="REPORT", help="write the JSON report here")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
-    return p
 
 
-def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        if argv and argv[0] in SUBCOMMANDS:
-            import importlib
-
-            return importlib.import_module(SUBCOMMANDS[argv[0]]).main(argv[1:])
-        return _unwrap_command(_parser().parse_args(argv))
-    except KeyboardInterrupt:
-        print("uvbake: interrupted; no output was written", file=sys.stderr)
-        return 130
-    except Exception as exc:  # one line, no traceback, whatever went wrong
-        from uvbake.errors import InputError, UvbakeError
-
-        if os.environ.get("UVBAKE_DEBUG"):
-            raise
-        if isinstance(exc, InputError):
-            print(f"uvbake: error: {exc}", file=sys.stderr)
-            return 2
-        if isinstance(exc, UvbakeError):
-            print(f"uvbake: failed: {exc}", file=sys.stderr)
-            return 1
-        if isinstance(exc, OSError):
-            print(f"uvbake: error: {exc.strerror or exc} ({exc.filename or ''}); check the path and permissions",
-                  file=sys.stderr)
-            return 2
-        print(f"uvbake: internal error: {type(exc).__name__}: {exc} (rerun with UVBAKE_DEBUG=1 and report it)",
-              file=sys.stderr)
-        return 3
-
-
-def output_path(mesh, output, *, suffix="_uv", ext=".obj"):
+def output_path(mesh: str, output: str | None, *, suffix: str = "_uv", ext: str = ".obj") -> Path:
     """The output path: the one given, or MESH<suffix><ext> beside the input; never the input itself."""
-    from uvbake.errors import InputError
-
     src = Path(mesh)
     out = Path(output) if output else src.with_name(src.stem + suffix + ext)
     if out.exists() and src.exists() and out.resolve() == src.resolve():
@@ -118,14 +94,12 @@ def output_path(mesh, output, *, suffix="_uv", ext=".obj"):
     return out
 
 
-def _unwrap_command(args):
-    from uvbake.atlas.pipeline import _check_texture, unwrap
-    from uvbake.errors import InputError
-
+def run(args: argparse.Namespace) -> int:
+    """``uvbake [unwrap] MESH ...``: unwrap, bake, write; the exit status (1 when the atlas is not valid)."""
     t0 = time.perf_counter()
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
-    _check_texture(args.texture_size, args.gutter)
+    check_texture(args.texture_size, args.gutter)
     out = output_path(args.mesh, args.output)
     if out.suffix.lower() not in (".obj", ".glb"):
         raise InputError(f"output {out} must end in .obj or .glb")
@@ -168,8 +142,6 @@ def _unwrap_command(args):
                     guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
                     progress=on_stage, callback=on_iteration)
     if args.cross_check:
-        from uvbake.analysis.crosscheck import cross_check_charts
-
         result.report["cross_check"] = cross_check_charts(result.charts, result.results, alpha=args.alpha,
                                                           init=args.init, tol=args.tol, max_iter=args.max_iter,
                                                           seed=args.seed, raise_on_disagree=False)
@@ -177,20 +149,14 @@ def _unwrap_command(args):
         bar.close()
     written = result.save(out)
     if bake_path is not None:
-        from uvbake.io.export import save_png
-
         save_png(bake_path, result.image)
         written = list(written) + [bake_path]
     if preview_path is not None:
-        from uvbake.render import preview
-
         preview(result, path=preview_path)
         written = list(written) + [preview_path]
     result.report["outputs"] = [str(p) for p in written] + ([str(report_path)] if report_path else [])
     result.report["timings"]["cli_total_s"] = time.perf_counter() - t0
     if report_path is not None:
-        from uvbake.io.atomic import atomic_write
-
         with atomic_write(report_path) as fh:
             json.dump(result.report, fh, indent=1)
     rep = result.report
@@ -217,7 +183,7 @@ def _unwrap_command(args):
     return 0
 
 
-def _progress(*, quiet):
+def _progress(*, quiet: bool) -> Any:
     if quiet:
         return None
     from tqdm import tqdm
@@ -225,6 +191,3 @@ def _progress(*, quiet):
     # disable=None: shown on a terminal, silent when stderr is a pipe or a CI log
     return tqdm(total=1, unit="chart", desc="uvbake", disable=None, leave=False, file=sys.stderr)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -9,59 +9,186 @@ alpha = 0 only the conformal term is left and its minimum is the collapsed map, 
 vertices are pinned (as LSCM does) to fix translation, rotation and scale, and the converged map is
 then scaled so its total UV area equals the surface's 3D area: the conformal map at the surface's
 own scale. Its reported gradient norm is that of the pinned problem.
+
+Running many charts. :func:`solve_chart` is a plain function of (chart, options, start) that pickles,
+so any ``concurrent.futures.Executor`` runs it: :func:`parameterize_charts` uses threads by default
+(the sparse factorisations and numpy kernels release the GIL). BLAS is limited to one thread per
+worker (numpy's and CHOLMOD's OpenBLAS pools otherwise fight over the cores): in the calling process
+once around the whole map, and in worker processes by the executor's initializer
+:func:`limit_blas_threads`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Executor, ThreadPoolExecutor, as_completed
+from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-from uvbake.mesh.charts import check_chart
-from uvbake.flatten.energy import DistortionEnergy, optimal_scale
 from uvbake.errors import InputError
-from uvbake.flatten.starts import INITS, farthest_boundary_pair, initial_map
-from uvbake.flatten.solvers.result import ParamResult
+from uvbake.flatten.energy import DistortionEnergy, optimal_scale
+from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions
+from uvbake.flatten.solvers.lbfgs import lbfgs
+from uvbake.flatten.solvers.linalg import cholmod_available
+from uvbake.flatten.solvers.lm import levenberg_marquardt
+from uvbake.flatten.solvers.result import ParamResult, SolveResult
+from uvbake.flatten.starts import farthest_boundary_pair, initial_map
+from uvbake.mesh.arrays import unit_scale
+from uvbake.mesh.charts import Chart, check_chart
 
-BACKENDS = ("lm", "lbfgs")
+__all__ = ["parameterize", "parameterize_charts", "solve_chart", "limit_blas_threads", "SolveOptions"]
 
-
-def _check_options(alpha, init, backend, tol, max_iter):
-    try:
-        alpha = float(alpha)
-    except (TypeError, ValueError):
-        raise InputError(f"alpha={alpha!r} is not a number; pass a weight between 0 and 1") from None
-    if not (0.0 <= alpha <= 1.0):
-        raise InputError(f"alpha={alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) and 1 (areas only)")
-    if init not in INITS:
-        raise InputError(f"init={init!r} is not one of {', '.join(repr(i) for i in INITS)}")
-    if backend not in BACKENDS:
-        raise InputError(f"backend={backend!r} is not one of {', '.join(repr(b) for b in BACKENDS)}")
-    if not (np.isfinite(tol) and tol > 0):
-        raise InputError(f"tol={tol!r} must be a positive number (the scale-free gradient norm to reach)")
-    if int(max_iter) != max_iter or max_iter < 0:
-        raise InputError(f"max_iter={max_iter!r} must be a non-negative integer")
-    return alpha
+Callback = Callable[[dict[str, Any]], Any]
+Progress = Callable[[int, int, ParamResult], Any]
 
 
-CONTINUATION_ALPHA = 0.1
+def limit_blas_threads() -> None:
+    """Executor initializer for worker processes: one BLAS thread for the worker's whole life.
+
+    ``ProcessPoolExecutor(initializer=limit_blas_threads)``. Not for threads: BLAS pools are
+    process-wide, so :func:`parameterize_charts` limits them once around the map instead.
+    """
+    cholmod_available()          # load CHOLMOD's BLAS first, so the limit reaches it too
+    threadpool_limits(limits=1, user_api="blas")
 
 
-def _solve(backend, energy, x0, uv_fixed, tol, max_iter, linear_solver, callback):
-    if backend == "lm":
-        from uvbake.flatten.solvers.lm import levenberg_marquardt
-
-        return levenberg_marquardt(energy, x0, uv_fixed=uv_fixed, tol=tol, max_iter=max_iter,
-                                   linear_solver=linear_solver, callback=callback)
-    from uvbake.flatten.solvers.lbfgs import lbfgs
-
-    return lbfgs(energy, x0, uv_fixed=uv_fixed, tol=tol, max_iter=max_iter, callback=callback)
+@contextlib.contextmanager
+def _one_blas_thread() -> Iterator[None]:
+    # camelhead, 11 LM iterations: 3.1 s with two BLAS threads each, 1.55 s with one
+    cholmod_available()
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
 
 
-def parameterize(V, F, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1000, seed=0,
-                 uv0=None, callback=None, linear_solver="auto", continuation=True, name="chart 0"):
+def _run_backend(energy: DistortionEnergy, start: np.ndarray, options: SolveOptions, max_iter: int,
+                 callback: Callback | None) -> tuple[np.ndarray, SolveResult]:
+    x0 = energy.to_vector(start)
+    if options.backend == "lm":
+        return levenberg_marquardt(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter,
+                                   linear_solver=options.linear_solver, callback=callback)
+    return lbfgs(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter, callback=callback)
+
+
+def _chart_arrays(chart: Chart | Sequence[Any], index: int = 0) -> tuple[np.ndarray, np.ndarray, str]:
+    if isinstance(chart, Chart) or hasattr(chart, "V"):
+        return chart.V, chart.F, chart.name
+    name = chart[2] if len(chart) > 2 else f"chart {index}"
+    return chart[0], chart[1], name
+
+
+def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, start: np.ndarray | None = None,
+                callback: Callback | None = None) -> ParamResult:
+    """Flatten one chart: the work unit any executor runs (a picklable function of picklable data).
+
+    Parameters
+    ----------
+    chart : :class:`uvbake.mesh.charts.Chart`, or (V, F) or (V, F, name)
+    options : SolveOptions
+    start : (n,2) float array, optional
+        A start map of your own (overrides ``options.init``), in the surface's units.
+    callback : callable, optional
+        As in :func:`parameterize`.
+
+    Does not touch BLAS thread limits (see :func:`limit_blas_threads`).
+    """
+    t0 = time.perf_counter()
+    V, F, name = _chart_arrays(chart)
+    check_chart(V, F, name=name)
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    Vn, unit = unit_scale(V, F)
+    alpha = options.alpha
+    if start is not None:
+        start = np.asarray(start, dtype=np.float64)
+        if start.shape != (len(V), 2) or not np.all(np.isfinite(start)):
+            raise InputError(f"{name}: uv0 has shape {start.shape} or non-finite values; pass finite (n,2) UVs")
+        uv_start = start / unit
+        init_name = "given"
+    else:
+        uv_start = initial_map(Vn, F, options.init, seed=options.seed)
+        init_name = options.init
+
+    fixed = None
+    if alpha == 0.0:
+        p, q = farthest_boundary_pair(Vn, F)
+        fixed = np.zeros(2 * len(V), bool)
+        fixed[[2 * p, 2 * p + 1, 2 * q, 2 * q + 1]] = True
+    energy = DistortionEnergy(Vn, F, alpha=alpha, fixed=fixed)
+    # best uniform scale of the start (at alpha = 0: the scale of equal total area), so that the
+    # pins of the alpha = 0 gauge sit at the surface's own scale
+    uv_start = uv_start * optimal_scale(energy, uv_start)
+    if alpha == 0.0 and np.linalg.norm(uv_start[p] - uv_start[q]) == 0:
+        uv_start[q] += [np.linalg.norm(Vn[q] - Vn[p]), 0.0]
+    f_init = energy.value(uv_start)          # at the target alpha, before any continuation
+
+    uv_start, stage = _continuation(Vn, F, energy, uv_start, options, callback)
+    spent = stage.iterations if stage is not None else 0
+    x, info = _run_backend(energy, uv_start, options, max(options.max_iter - spent, 0), callback)
+    iterations = info.iterations + spent
+    evaluations = info.evaluations + (stage.evaluations if stage is not None else 0)
+    history = info.history
+    uvn = energy.to_uv(x, uv_start)
+    grad_norm = info.grad_norm
+    if alpha == 0.0:
+        # the pinned conformal map, scaled to the surface's own area. The pinned problem is linear,
+        # so with the pins moved by the same scale its solution is the scaled map: a re-solve from
+        # there only polishes the gradient, which the scaling multiplied by s.
+        uvn = uvn * optimal_scale(energy, uvn)
+        x, polish = _run_backend(energy, uvn, options, options.max_iter, None)
+        uvn = energy.to_uv(x, uvn)
+        grad_norm = polish.grad_norm
+        iterations += polish.iterations
+        history = np.concatenate([history, polish.history[1:]])
+    extra: dict[str, Any] = {}
+    if "linear_solver" in info.extra:
+        extra["linear_solver"] = info.extra["linear_solver"]
+    if stage is not None:
+        extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
+                                     energy=float(stage.energy), history=[float(h) for h in stage.history])
+    det = energy.determinants(uvn)
+    return ParamResult(
+        uv=uvn * unit,
+        energy=float(DistortionEnergy.value(energy, uvn)),
+        grad_norm=float(grad_norm),
+        iterations=int(iterations),
+        converged=bool(grad_norm < options.tol),
+        n_flipped=int(np.count_nonzero(det <= 0)),
+        history=np.asarray(history),
+        time_s=time.perf_counter() - t0,
+        alpha=alpha,
+        init=init_name,
+        backend=options.backend,
+        energy_init=float(f_init),
+        stop_reason=info.message,
+        n_evaluations=int(evaluations),
+        extra=extra,
+        status=info.status,
+    )
+
+
+def _continuation(Vn: np.ndarray, F: np.ndarray, energy: DistortionEnergy, start: np.ndarray,
+                  options: SolveOptions, callback: Callback | None) -> tuple[np.ndarray, SolveResult | None]:
+    """An invalid start (flipped triangles, e.g. init="random") first goes to the nearly convex
+    angle-dominated energy, then on to alpha (docs/decisions/continuation.md)."""
+    if not (options.continuation and options.alpha > CONTINUATION_ALPHA
+            and np.any(energy.determinants(start) <= 0)):
+        return start, None
+    e_c = DistortionEnergy(Vn, F, alpha=CONTINUATION_ALPHA)
+    x_c, info_c = _run_backend(e_c, start, options, options.max_iter, callback)
+    start = e_c.to_uv(x_c, start)
+    return start * optimal_scale(energy, start), info_c
+
+
+def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.init,
+                 backend: str = DEFAULTS.backend, tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter,
+                 seed: int = DEFAULTS.seed, uv0: np.ndarray | None = None, callback: Callback | None = None,
+                 linear_solver: str = DEFAULTS.linear_solver, continuation: bool = DEFAULTS.continuation,
+                 name: str = "chart 0") -> ParamResult:
     """Flatten one chart (a connected disk with holes) by minimising the paper's F.
 
     Parameters
@@ -94,158 +221,73 @@ def parameterize(V, F, *, alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_it
     -------
     ParamResult
         ``uv (n,2)`` in the surface's length units, ``energy`` (the paper's F at uv), ``grad_norm``,
-        ``iterations``, ``converged``, ``n_flipped``, ``history``, ``time_s``.
+        ``iterations``, ``converged``, ``n_flipped``, ``history``, ``time_s``, ``status``.
     """
-    from threadpoolctl import threadpool_limits
-
-    from uvbake.flatten.solvers.linalg import cholmod_available
-
-    cholmod_available()          # load CHOLMOD's BLAS first, so the limit below reaches it too
-
-    # One BLAS thread: numpy's and CHOLMOD's OpenBLAS pools otherwise fight over the cores
-    # (camelhead, 11 LM iterations: 3.1 s with two threads each, 1.55 s with one); charts run
-    # in parallel threads instead.
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _parameterize(V, F, alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter,
-                             seed=seed, uv0=uv0, callback=callback, linear_solver=linear_solver,
-                             continuation=continuation, name=name)
+    options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
+                           linear_solver=linear_solver, continuation=continuation)
+    with _one_blas_thread():
+        return solve_chart((V, F, name), options, uv0, callback)
 
 
-def _parameterize(V, F, *, alpha, init, backend, tol, max_iter, seed, uv0, callback, linear_solver,
-                  continuation, name):
-    t0 = time.perf_counter()
-    alpha = _check_options(alpha, init, backend, tol, max_iter)
-    check_chart(V, F, name=name)
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    # unit mean edge length, centred: the scale-free frame of the stopping rule
-    edges = V[F[:, [1, 2, 0]]] - V[F]
-    unit = float(np.mean(np.linalg.norm(edges, axis=2)))
-    Vn = (V - V.mean(axis=0)) / unit
-    if uv0 is not None:
-        uv0 = np.asarray(uv0, dtype=np.float64)
-        if uv0.shape != (len(V), 2) or not np.all(np.isfinite(uv0)):
-            raise InputError(f"{name}: uv0 has shape {uv0.shape} or non-finite values; pass finite (n,2) UVs")
-        start = uv0 / unit
-        init_name = "given"
-    else:
-        start = initial_map(Vn, F, init, seed=seed)
-        init_name = init
-
-    fixed = None
-    if alpha == 0.0:
-        p, q = farthest_boundary_pair(Vn, F)
-        fixed = np.zeros(2 * len(V), bool)
-        fixed[[2 * p, 2 * p + 1, 2 * q, 2 * q + 1]] = True
-    energy = DistortionEnergy(Vn, F, alpha=alpha, fixed=fixed)
-    # best uniform scale of the start (at alpha = 0: the scale of equal total area), so that the
-    # pins of the alpha = 0 gauge sit at the surface's own scale
-    start = start * optimal_scale(energy, start)
-    if alpha == 0.0 and np.linalg.norm(start[p] - start[q]) == 0:
-        start[q] += [np.linalg.norm(Vn[q] - Vn[p]), 0.0]
-    f_init = energy.value(start)          # at the target alpha, before any continuation
-
-    stages = []
-    if continuation and alpha > CONTINUATION_ALPHA and np.any(energy.determinants(start) <= 0):
-        # An invalid start (flipped triangles, e.g. init="random") first goes to the nearly convex
-        # angle-dominated energy, then on to alpha: measured on developable patches from random
-        # starts at alpha 0.5 / 0.9, direct solves stall in wound local minima (F per triangle up to
-        # 0.1) while the continuation reaches the isometry (F per triangle < 1e-20).
-        e_c = DistortionEnergy(Vn, F, alpha=CONTINUATION_ALPHA)
-        x_c, info_c = _solve(backend, e_c, e_c.to_vector(start), start, tol, max_iter, linear_solver, callback)
-        start = e_c.to_uv(x_c, start)
-        start = start * optimal_scale(energy, start)
-        stages.append(info_c)
-    x, info = _solve(backend, energy, energy.to_vector(start), start, tol,
-                     max(max_iter - sum(st["iterations"] for st in stages), 0), linear_solver, callback)
-    if stages:
-        info = dict(info)
-        info["iterations"] += stages[0]["iterations"]
-        info["evaluations"] = info.get("evaluations", 0) + stages[0].get("evaluations", 0)
-        info["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stages[0]["iterations"],
-                                    energy=float(stages[0]["energy"]),
-                                    history=[float(h) for h in stages[0]["history"]])
-    uvn = energy.to_uv(x, start)
-    grad_norm = info["grad_norm"]
-    if alpha == 0.0:
-        # the pinned conformal map, scaled to the surface's own area. The pinned problem is linear,
-        # so with the pins moved by the same scale its solution is the scaled map: a re-solve from
-        # there only polishes the gradient, which the scaling multiplied by s.
-        uvn = uvn * optimal_scale(energy, uvn)
-        x, polish = _solve(backend, energy, energy.to_vector(uvn), uvn, tol, max_iter, linear_solver, None)
-        uvn = energy.to_uv(x, uvn)
-        grad_norm = polish["grad_norm"]
-        info["iterations"] += polish["iterations"]
-        info["history"] = np.concatenate([info["history"], polish["history"][1:]])
-    det = energy.determinants(uvn)
-    uv = uvn * unit
-    return ParamResult(
-        uv=uv,
-        energy=float(DistortionEnergy.value(energy, uvn)),
-        grad_norm=float(grad_norm),
-        iterations=int(info["iterations"]),
-        converged=bool(grad_norm < tol),
-        n_flipped=int(np.count_nonzero(det <= 0)),
-        history=np.asarray(info["history"]),
-        time_s=time.perf_counter() - t0,
-        alpha=alpha,
-        init=init_name,
-        backend=backend,
-        energy_init=float(f_init),
-        stop_reason=info["stop_reason"],
-        n_evaluations=int(info.get("evaluations", 0)),
-        extra={k: info[k] for k in ("linear_solver", "continuation") if k in info},
-    )
-
-
-def parameterize_charts(charts, *, workers=None, progress=None, starts=None, **options):
-    """Parameterize several charts independently, in parallel threads.
+def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int | None = None,
+                        progress: Progress | None = None, starts: Sequence[np.ndarray | None] | None = None,
+                        executor: Executor | None = None, options: SolveOptions | None = None,
+                        callback: Callback | None = None, **option_values: Any) -> list[ParamResult]:
+    """Parameterize several charts independently, in parallel.
 
     Parameters
     ----------
     charts : list of :class:`uvbake.mesh.charts.Chart` (or of (V, F) pairs)
     workers : int, optional
-        Threads to use (default: the number of CPUs, at most the number of charts). The heavy work
-        (sparse factorisations, numpy kernels) releases the GIL.
+        Threads of the default executor (default: the number of CPUs, at most the number of charts).
     progress : callable, optional
         Called as ``progress(done, total, result)`` after each chart finishes.
     starts : list of ((k,2) array or None), optional
         A start map per chart (``uv0`` of :func:`parameterize`); None keeps ``init``.
-    **options
-        Passed to :func:`parameterize` (alpha, init, backend, tol, max_iter, seed, ...).
+    executor : concurrent.futures.Executor, optional
+        Runs :func:`solve_chart` per chart (default: a thread pool of ``workers`` threads). For a
+        ``ProcessPoolExecutor`` pass ``initializer=limit_blas_threads``, and no ``callback``.
+    options : SolveOptions, optional
+        The solve options; or give them as keywords (alpha, init, backend, tol, max_iter, seed, ...).
+    callback : callable, optional
+        Passed to every solve (see :func:`parameterize`).
 
     Returns
     -------
-    list of ParamResult, in the order of ``charts``.
+    list of ParamResult, in the order of ``charts`` (whatever order they finish in).
     """
-    items = [(c.V, c.F, c.name) if hasattr(c, "V") else (c[0], c[1], f"chart {i}") for i, c in enumerate(charts)]
+    if options is None:
+        options = SolveOptions(**option_values)
+    elif option_values:
+        options = options.replace(**option_values)
+    items = [_chart_arrays(c, i) for i, c in enumerate(charts)]
     if not items:
         return []
-    _check_options(options.get("alpha", 0.5), options.get("init", "lscm"), options.get("backend", "lm"),
-                   options.get("tol", 1e-8), options.get("max_iter", 1000))
     workers = workers or min(os.cpu_count() or 1, len(items))
-    results = [None] * len(items)
+    results: list[ParamResult | None] = [None] * len(items)
     done = 0
 
-    def run(i):
-        V, F, name = items[i]
-        uv0 = None if starts is None else starts[i]
-        return i, parameterize(V, F, name=name, uv0=uv0, **options)
+    def finish(i: int, res: ParamResult) -> None:
+        nonlocal done
+        results[i] = res
+        done += 1
+        if progress:
+            progress(done, len(items), res)
 
-    if workers <= 1 or len(items) == 1:
-        for i in range(len(items)):
-            _, results[i] = run(i)
-            done += 1
-            if progress:
-                progress(done, len(items), results[i])
-        return results
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        # largest charts first so the pool stays busy
-        order = sorted(range(len(items)), key=lambda i: -len(items[i][1]))
-        for fut in as_completed([pool.submit(run, i) for i in order]):
-            i, res = fut.result()
-            results[i] = res
-            done += 1
-            if progress:
-                progress(done, len(items), res)
-    return results
+    def start_of(i: int) -> np.ndarray | None:
+        return None if starts is None else starts[i]
+
+    # BLAS pools are process-wide: limit them once here, around every solve of this process
+    with _one_blas_thread():
+        if executor is None and (workers <= 1 or len(items) == 1):
+            for i in range(len(items)):
+                finish(i, solve_chart(items[i], options, start_of(i), callback))
+        else:
+            with contextlib.ExitStack() as stack:
+                pool = executor or stack.enter_context(ThreadPoolExecutor(max_workers=workers))
+                # largest charts first so the pool stays busy
+                order = sorted(range(len(items)), key=lambda i: -len(items[i][1]))
+                futures = {pool.submit(solve_chart, items[i], options, start_of(i), callback): i for i in order}
+                for fut in as_completed(futures):
+                    finish(futures[fut], fut.result())
+    return [r for r in results if r is not None]

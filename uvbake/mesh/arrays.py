@@ -40,3 +40,16 @@ def check_arrays(V, F, *, where="mesh"):
         raise InputError(f"{where}: {len(bad)} vertices have NaN or infinite coordinates (vertices {_list(bad)}); "
                          "remove or repair them before unwrapping")
     return V, F
+
+
+def unit_scale(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, float]:
+    """V centred and scaled to unit mean edge length, and that mean edge length (the scale-free frame).
+
+    F is invariant when mesh and map are scaled together, so solving there makes the gradient norm
+    (the stopping rule) independent of the model's units; UVs scale back by the returned length.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    edges = V[F[:, [1, 2, 0]]] - V[F]
+    unit = float(np.mean(np.linalg.norm(edges, axis=2)))
+    return (V - V.mean(axis=0)) / unit, unit

@@ -44,6 +44,15 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import scipy.sparse as sp
+
+from uvbake.errors import InputError
+from uvbake.flatten.solvers.linalg import (
+    NotPositiveDefinite,
+    cholesky_lower,
+    cholmod_available,
+)
+from uvbake.flatten.solvers.result import MESSAGES, SolveResult, Status
 
 #: L-BFGS memory (stored correction pairs). Preconditioned, from lscm starts to ||g|| < 1e-8
 #: (iterations): halftunnel alpha 0.1: m=10 36, m=20 30; camelhead alpha 0.1: m=5 153, 10 133, 20 134,
@@ -107,9 +116,11 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
 
     Returns
     -------
-    x : (k,) float array (the best point evaluated), and a dict with energy, grad_norm, iterations,
-    converged, history, stop_reason, evaluations, restarts, nlopt_results, preconditioner,
-    preconditioner_builds and solve_time_s.
+    x : (k,) float array
+        The best point evaluated.
+    result : SolveResult
+        ``extra`` holds restarts, nlopt_results (every nlopt run's end, in words), preconditioner and
+        preconditioner_builds.
     """
     import nlopt
 
@@ -125,11 +136,11 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
     st = dict(x=x0.copy(), f=float(f0), g=float(np.linalg.norm(g0)), it=0, ev=1, stop=None)
     history = [st["f"]]
     if not np.isfinite(st["f"]):
-        return x0, _info(st, history, "non-finite start", tol, [], 0, t0)
+        return x0, _info(st, history, Status.NON_FINITE_START, tol, [], 0, t0)
     if st["g"] < tol:
-        return x0, _info(st, history, "converged", tol, [], 0, t0)
+        return x0, _info(st, history, Status.CONVERGED, tol, [], 0, t0)
     if max_iter == 0 or k == 0:
-        return x0, _info(st, history, "max_iter", tol, [], 0, t0)
+        return x0, _info(st, history, Status.MAX_ITER, tol, [], 0, t0)
 
     kind = PRECONDITION if precondition is None else precondition
     refresh = REFRESH_EVERY if refresh_every is None else int(refresh_every)
@@ -146,7 +157,7 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
         def objective(y, grad):
             x = x_ref + T(y)
             if st["ev"] >= max_eval:
-                st["stop"] = "max_eval"
+                st["stop"] = Status.MAX_EVAL
                 raise nlopt.ForcedStop
             uv = energy.to_uv(x, uv_fixed)
             f_abs, g = energy.value_and_gradient(uv)
@@ -163,14 +174,14 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
                 st["it"] += 1
                 history.append(st["f"])
                 if gn < tol:
-                    st["stop"] = "converged"
+                    st["stop"] = Status.CONVERGED
                     raise nlopt.ForcedStop
                 if callback is not None and callback(dict(iteration=st["it"], energy=st["f"],
                                                           grad_norm=gn, evaluations=st["ev"])):
-                    st["stop"] = "stopped by callback"
+                    st["stop"] = Status.CALLBACK
                     raise nlopt.ForcedStop
                 if st["it"] >= max_iter:
-                    st["stop"] = "max_iter"
+                    st["stop"] = Status.MAX_ITER
                     raise nlopt.ForcedStop
                 if refresh and st["it"] - it_start >= refresh:
                     st["refresh"] = True
@@ -189,32 +200,34 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
         try:
             opt.optimize(np.zeros(k))
             code = opt.last_optimize_result()
-            return {nlopt.SUCCESS: "nlopt success", nlopt.STOPVAL_REACHED: "nlopt stopval",
-                    nlopt.FTOL_REACHED: "nlopt ftol", nlopt.XTOL_REACHED: "nlopt xtol",
-                    nlopt.MAXEVAL_REACHED: "max_eval", nlopt.MAXTIME_REACHED: "nlopt maxtime"}.get(
-                        code, f"nlopt result {code}")
+            status = {nlopt.SUCCESS: Status.NLOPT_SUCCESS, nlopt.STOPVAL_REACHED: Status.NLOPT_STOPVAL,
+                      nlopt.FTOL_REACHED: Status.NLOPT_FTOL, nlopt.XTOL_REACHED: Status.NLOPT_XTOL,
+                      nlopt.MAXEVAL_REACHED: Status.MAX_EVAL, nlopt.MAXTIME_REACHED: Status.NLOPT_MAXTIME}.get(
+                          code, Status.NLOPT_OTHER)
+            return status, (f"nlopt result {code}" if status == Status.NLOPT_OTHER else MESSAGES[status])
         except Exception as exc:
             # our own stops raise nlopt.ForcedStop from the objective; depending on the build, nlopt
             # hands it back as ForcedStop or as its generic runtime_error, so the flags decide
             if st.pop("refresh", False):
-                return "refresh"
-            if st["stop"]:
-                return st["stop"]
+                return Status.REFRESH, MESSAGES[Status.REFRESH]
+            if st["stop"] is not None:
+                return st["stop"], MESSAGES[st["stop"]]
             if isinstance(exc, nlopt.RoundoffLimited):
-                return "roundoff limited"
+                return Status.ROUNDOFF_LIMITED, MESSAGES[Status.ROUNDOFF_LIMITED]
             if isinstance(exc, nlopt.ForcedStop):
-                return "forced stop"
-            return f"nlopt failure ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''})"
+                return Status.FORCED_STOP, MESSAGES[Status.FORCED_STOP]
+            detail = f"{type(exc).__name__}{': ' + str(exc) if str(exc) else ''}"
+            return Status.NLOPT_FAILURE, f"nlopt failure ({detail})"
 
-    reasons = []
+    reasons: list[tuple[Status, str]] = []
     n_restart = 0
     while True:
         g_before = st["g"]
         reason = run(st["x"].copy())
         reasons.append(reason)
-        if st["stop"] is not None or reason == "max_eval":
+        if st["stop"] is not None or reason[0] == Status.MAX_EVAL:
             break
-        if reason == "refresh":
+        if reason[0] == Status.REFRESH:
             # planned: rebuild the preconditioner at the best point and go on (not a restart)
             if kind != "none":
                 pc.update(zip(("T", "Tt", "name"), _preconditioner(energy, st["x"], uv_fixed, kind)))
@@ -222,16 +235,16 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
             continue
         # nlopt stopped on its own short of the tolerance: restart from the best point while that
         # still helps; its "success" is its own gradient test, pushed away by a larger scale
-        if reason == "nlopt success" and pc["scale"] < SCALE_MAX:
+        if reason[0] == Status.NLOPT_SUCCESS and pc["scale"] < SCALE_MAX:
             pc["scale"] = min(pc["scale"] * SCALE_STEP, SCALE_MAX)
         elif st["g"] >= 0.9 * g_before:
             break
         if n_restart >= restarts:
             break
         n_restart += 1
-    stop = st["stop"] or reasons[-1]
-    reasons = [r for r in reasons if r != "refresh"]
-    return st["x"], _info(st, history, stop, tol, reasons, n_restart, t0, pc["name"], pc["builds"])
+    stop = (st["stop"], MESSAGES[st["stop"]]) if st["stop"] is not None else reasons[-1]
+    ends = [message for status, message in reasons if status != Status.REFRESH]
+    return st["x"], _info(st, history, stop, tol, ends, n_restart, t0, pc["name"], pc["builds"])
 
 
 def _preconditioner(energy, x0, uv_fixed, kind):
@@ -246,8 +259,6 @@ def _preconditioner(energy, x0, uv_fixed, kind):
     "none": T = I.
     """
     if kind not in ("cholesky", "jacobi", "none"):
-        from uvbake.errors import InputError
-
         raise InputError(f"precondition={kind!r} is not one of 'cholesky', 'jacobi', 'none'")
     if kind == "none" or len(x0) == 0:
         return (lambda y: y), (lambda g: g), "none"
@@ -257,22 +268,15 @@ def _preconditioner(energy, x0, uv_fixed, kind):
     if not dmax > 0:
         return (lambda y: y), (lambda g: g), "none"
     if kind == "cholesky":
-        try:
-            import warnings
-
-            import scipy.sparse as sp
-            from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
-        except ImportError:
+        if not cholmod_available():
             kind = "jacobi"
         else:
             eye = sp.identity(H.shape[0], format="csc")
             mu = 1e-6 * dmax
             for _ in range(12):
                 try:
-                    with warnings.catch_warnings():
-                        warnings.simplefilter("error")
-                        fac = cholesky((H + mu * eye).tocsc(), mode="supernodal")   # a true LL^T
-                except (CholmodNotPositiveDefiniteError, Warning):
+                    fac = cholesky_lower((H + mu * eye).tocsc())
+                except NotPositiveDefinite:
                     mu *= 10.0
                     continue
 
@@ -288,8 +292,11 @@ def _preconditioner(energy, x0, uv_fixed, kind):
     return (lambda y: s * y), (lambda g: s * g), "jacobi"
 
 
-def _info(st, history, stop, tol, reasons, n_restart, t0, pc_name="none", builds=0):
-    return dict(preconditioner=pc_name, preconditioner_builds=int(builds), energy=float(st["f"]), grad_norm=float(st["g"]), iterations=int(st["it"]),
-                converged=bool(st["g"] < tol), history=np.asarray(history, dtype=np.float64),
-                stop_reason=stop, evaluations=int(st["ev"]), restarts=int(n_restart),
-                nlopt_results=list(reasons), solve_time_s=time.perf_counter() - t0)
+def _info(st, history, stop, tol, ends, n_restart, t0, pc_name="none", builds=0):
+    status, message = (stop, MESSAGES[stop]) if isinstance(stop, Status) else stop
+    return SolveResult(energy=float(st["f"]), grad_norm=float(st["g"]), iterations=int(st["it"]),
+                       evaluations=int(st["ev"]), converged=bool(st["g"] < tol),
+                       history=np.asarray(history, dtype=np.float64), status=status, message=message,
+                       solve_time_s=time.perf_counter() - t0,
+                       extra=dict(preconditioner=pc_name, preconditioner_builds=int(builds),
+                                  restarts=int(n_restart), nlopt_results=list(ends)))

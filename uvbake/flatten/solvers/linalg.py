@@ -1,27 +1,33 @@
-"""Sparse symmetric solves with a symbolic factorisation computed once and reused.
+"""Sparse symmetric solves and the positive-definite test: the only factorisations of the package.
 
 CHOLMOD (through scikit-sparse, the optional ``cholmod`` extra) analyses the pattern once and then
-refactors A + beta I in place each LM iteration; it also tells when the matrix is not positive
-definite. Without it, SuperLU (scipy) factors each matrix from scratch with a symmetric
-minimum-degree ordering and no pivoting, and positive definiteness is read off the signs of U's
-diagonal (with a symmetric permutation they are the pivots of A = L D L^T, Sylvester's law).
-Measured on camelhead's 22,762 x 22,762 LM matrix: see bench/solver.py.
+refactors A + beta I in place each LM iteration, as a supernodal LL^T that fails when the matrix is not
+positive definite. Without it, SuperLU (scipy) factors each matrix from scratch with a symmetric
+minimum-degree ordering and diagonal pivots only; the matrix is positive definite exactly when every
+pivot is on the diagonal (a zero diagonal pivot makes SuperLU pivot off it) and positive (with a
+symmetric permutation the pivots are those of A = L D L^T, Sylvester's law). Timings: bench/solver.py
+and docs/decisions/linear-solvers.md.
 """
 
 from __future__ import annotations
 
-import warnings
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+from uvbake.errors import InputError
+
+LINEAR_SOLVERS = ("auto", "cholmod", "superlu")
 
 
 class NotPositiveDefinite(Exception):
     """The damped matrix was not positive definite: raise the damping and try again."""
 
 
-def cholmod_available():
+def cholmod_available() -> bool:
+    """Whether scikit-sparse's CHOLMOD can be imported (the optional ``cholmod`` extra)."""
     try:
         import sksparse.cholmod  # noqa: F401
     except ImportError:
@@ -29,68 +35,96 @@ def cholmod_available():
     return True
 
 
-def make_solver(pattern, *, method="auto"):
+def make_solver(pattern: sp.spmatrix, *, method: str = "auto") -> CholmodSolver | SuperLUSolver:
     """A solver for matrices with the pattern of ``pattern`` (CSC).
 
     method : {"auto", "cholmod", "superlu"}
         "auto" takes CHOLMOD when scikit-sparse is installed, SuperLU otherwise.
     """
-    if method not in ("auto", "cholmod", "superlu"):
-        from uvbake.errors import InputError
-
+    if method not in LINEAR_SOLVERS:
         raise InputError(f"linear_solver={method!r} is not one of 'auto', 'cholmod', 'superlu'")
     if method == "cholmod" or (method == "auto" and cholmod_available()):
         return CholmodSolver(pattern)
     return SuperLUSolver(pattern)
 
 
+def is_positive_definite(M: sp.spmatrix, *, method: str = "auto") -> bool:
+    """Whether the symmetric sparse matrix M is positive definite (one factorisation)."""
+    solver = make_solver(sp.csc_matrix(M), method=method)
+    try:
+        solver.factor(sp.csc_matrix(M), 0.0)
+    except NotPositiveDefinite:
+        return False
+    return True
+
+
+def cholesky_lower(M: sp.spmatrix) -> object:
+    """CHOLMOD's supernodal P M P^T = L L^T of a positive definite M (raises NotPositiveDefinite).
+
+    Needs scikit-sparse (ImportError otherwise); returns its ``Factor`` (``solve_L``, ``apply_P``, ...).
+    """
+    from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
+
+    try:
+        return cholesky(sp.csc_matrix(M, dtype=np.float64), mode="supernodal")   # a true LL^T
+    except CholmodNotPositiveDefiniteError as exc:
+        raise NotPositiveDefinite(str(exc)) from None
+
+
 class CholmodSolver:
+    """CHOLMOD with the symbolic factorisation of ``pattern`` computed once and reused."""
+
     name = "cholmod"
 
-    def __init__(self, pattern):
+    def __init__(self, pattern: sp.spmatrix) -> None:
         from sksparse.cholmod import analyze
 
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            # Supernodal LL^T, never mode="auto": for small matrices "auto" picks a simplicial
-            # L D L^T, which factors indefinite matrices without complaint (negative D), and LM then
-            # stops at saddle points (halftunnel, alpha 0.5: F 102.72 instead of 96.42, found by the
-            # L-BFGS cross-check). Nested dissection suits 2D meshes: on camelhead (22,762 unknowns,
-            # OpenBLAS) one factorisation took 0.049 s against 0.081 s with AMD.
-            self._factor = analyze(pattern, mode="supernodal", ordering_method="nesdis")
+        # Supernodal LL^T, never mode="auto": for small matrices "auto" picks a simplicial
+        # L D L^T, which factors indefinite matrices without complaint (negative D), and LM then
+        # stops at saddle points (docs/decisions/linear-solvers.md). Nested dissection suits 2D meshes.
+        self._factor = analyze(sp.csc_matrix(pattern, dtype=np.float64), mode="supernodal",
+                               ordering_method="nesdis")
 
-    def factor(self, A, beta):
+    def factor(self, A: sp.spmatrix, beta: float) -> None:
         """Factor A + beta I (same pattern as at construction)."""
         from sksparse.cholmod import CholmodNotPositiveDefiniteError
 
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("error")
-                self._factor.cholesky_inplace(A, beta=beta)
-        except (CholmodNotPositiveDefiniteError, Warning) as exc:
+            self._factor.cholesky_inplace(A, beta=beta)
+        except CholmodNotPositiveDefiniteError as exc:
             raise NotPositiveDefinite(str(exc)) from None
 
-    def solve(self, b):
+    def solve(self, b: np.ndarray) -> np.ndarray:
         return self._factor(b)
 
 
 class SuperLUSolver:
+    """SuperLU (scipy) in symmetric mode with diagonal pivots; refactors from scratch every time."""
+
     name = "superlu"
 
-    def __init__(self, pattern):
+    def __init__(self, pattern: sp.spmatrix) -> None:
         self._eye = sp.identity(pattern.shape[0], format="csc")
-        self._lu = None
+        self._lu: spla.SuperLU | None = None
 
-    def factor(self, A, beta):
+    def factor(self, A: sp.spmatrix, beta: float) -> None:
+        """Factor A + beta I; NotPositiveDefinite unless every pivot is a positive diagonal entry."""
         M = (A + beta * self._eye).tocsc()
         try:
             lu = spla.splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                            options=dict(SymmetricMode=True))
         except RuntimeError as exc:          # exactly singular
             raise NotPositiveDefinite(str(exc)) from None
-        if np.array_equal(lu.perm_r, lu.perm_c) and np.any(lu.U.diagonal() <= 0):
+        if not np.array_equal(lu.perm_r, lu.perm_c):
+            # SuperLU left the diagonal: a zero diagonal pivot, impossible for a positive definite M
+            raise NotPositiveDefinite("an off-diagonal pivot (a zero diagonal pivot)")
+        if np.any(lu.U.diagonal() <= 0):
             raise NotPositiveDefinite("a non-positive pivot")
         self._lu = lu
 
-    def solve(self, b):
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        assert self._lu is not None, "factor() first"
         return self._lu.solve(b)
+
+
+Solver = Callable[[np.ndarray], np.ndarray]

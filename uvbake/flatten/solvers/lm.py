@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
-
+from uvbake.flatten.solvers.result import SolveResult, Status
 
 # Damping constants, chosen by measurement (bench/solver.py; iterations from LSCM starts on
 # camelhead alpha 0.1 / 0.5 and beetle alpha 0.1 / 0.5, and from a random start on camelhead 0.5):
@@ -74,8 +74,9 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
 
     Returns
     -------
-    x : (k,) float array, and a dict with energy, grad_norm, iterations, converged, history,
-    stop_reason, evaluations and the linear solver used.
+    x : (k,) float array
+    result : SolveResult
+        ``extra`` holds the linear solver used and the number of saddle escapes.
     """
     t0 = time.perf_counter()
     x = np.array(x0, dtype=np.float64)
@@ -94,17 +95,17 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
     history = [f]
     zero_uv = np.zeros_like(uv_fixed)
     it = 0
-    stop = "max_iter"
+    stop = Status.MAX_ITER
     if not np.isfinite(f):
-        stop = "non-finite start"
-    while it < max_iter and stop == "max_iter":
+        stop = Status.NON_FINITE_START
+    while it < max_iter and stop == Status.MAX_ITER:
         if gnorm < tol and it == 0:
             # a start that is already stationary still gets the second-order test
             out = _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax)
             it += out["factorisations"]
             history.extend([f] * out["factorisations"])
             if out["x"] is None:
-                stop = "converged"
+                stop = Status.CONVERGED
                 break
             escapes += 1
             x = out["x"]
@@ -114,7 +115,9 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
             continue
         it += 1
         accepted = False
-        reason = "indefinite"
+        indefinite = True        # until a factorisation succeeds
+        backtracked = False
+        reason = "indefinite"    # for the callback only
         try:
             solver.factor(H, lam)
             delta = -solver.solve(g)
@@ -128,6 +131,7 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
             duv = energy.to_uv(x_new - x, zero_uv)
             actual = -energy.change(energy.to_uv(x, uv_fixed), duv)
             n_eval += 1
+            indefinite = False
             rho = actual / pred if pred > 0 else -1.0
             reason = f"gain {rho:.3g}"
             if not (rho > 0 and actual > 0):
@@ -143,9 +147,10 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
                     if d_try > -1e-4 * t * slope and d_try > 0:
                         x_new, actual, rho = x_try, d_try, 0.0
                         delta = x_try - x
+                        backtracked = True
                         reason = f"backtracked to {t:g}"
                         break
-            if actual > 0 and (rho > 0 or reason.startswith("backtracked")):
+            if actual > 0 and (rho > 0 or backtracked):
                 accepted = True
                 x = x_new
                 f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
@@ -155,9 +160,9 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
                 lam_indef *= INDEF_DECAY
                 nu = 2.0
                 if np.linalg.norm(delta) <= 1e-15 * (1.0 + np.linalg.norm(x)):
-                    stop = "step too small"
+                    stop = Status.STEP_TOO_SMALL
         if not accepted:
-            if reason == "indefinite":
+            if indefinite:
                 # remember where H + lambda I stopped being positive definite, and jump well past it
                 lam_indef = max(lam_indef, lam)
                 lam *= INDEF_JUMP
@@ -165,7 +170,7 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
                 lam *= nu
                 nu *= 2.0
             if lam > 1e30 * max(hmax, 1.0):
-                stop = "damping diverged"
+                stop = Status.DAMPING_DIVERGED
         history.append(f)
         if gnorm < tol:
             if escapes < MAX_ESCAPES:
@@ -182,15 +187,16 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
                     nu = 2.0
                     history[-1] = f
                     continue
-            stop = "converged"
+            stop = Status.CONVERGED
         if callback is not None and callback(dict(iteration=it, energy=f, grad_norm=gnorm,
                                                   damping=lam, accepted=accepted,
                                                   reason=reason)):
-            stop = "stopped by callback" if stop == "max_iter" else stop
+            stop = Status.CALLBACK if stop == Status.MAX_ITER else stop
             break
-    return x, dict(energy=f, grad_norm=gnorm, iterations=it, converged=gnorm < tol, saddle_escapes=escapes,
-                   history=np.asarray(history), stop_reason=stop, evaluations=n_eval,
-                   linear_solver=solver.name, solve_time_s=time.perf_counter() - t0)
+    return x, SolveResult(energy=float(f), grad_norm=gnorm, iterations=it, evaluations=n_eval,
+                          converged=bool(gnorm < tol), history=np.asarray(history), status=stop,
+                          solve_time_s=time.perf_counter() - t0,
+                          extra=dict(linear_solver=solver.name, saddle_escapes=escapes))
 
 
 def _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax):

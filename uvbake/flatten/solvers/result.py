@@ -1,10 +1,104 @@
-"""The record every parameterization backend returns."""
+"""The records solvers return: one status enum and one result type for every backend.
+
+As scipy's ``OptimizeResult``: an integer :class:`Status` says why a solve stopped, and
+``MESSAGES[status]`` says it in words (the ``stop_reason`` strings of the reports).
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Any
 
 import numpy as np
+
+
+class Status(IntEnum):
+    """Why a solve stopped. Codes 0-9: both backends; 10 and up: nlopt's own ends (L-BFGS)."""
+
+    CONVERGED = 0
+    MAX_ITER = 1
+    MAX_EVAL = 2
+    CALLBACK = 3
+    NON_FINITE_START = 4
+    STEP_TOO_SMALL = 5
+    DAMPING_DIVERGED = 6
+    NLOPT_SUCCESS = 10
+    NLOPT_STOPVAL = 11
+    NLOPT_FTOL = 12
+    NLOPT_XTOL = 13
+    NLOPT_MAXTIME = 14
+    NLOPT_OTHER = 15
+    ROUNDOFF_LIMITED = 16
+    FORCED_STOP = 17
+    NLOPT_FAILURE = 18
+    REFRESH = 19  # internal to L-BFGS: a planned restart with a new preconditioner, never returned
+
+
+#: The words of each status (the ``stop_reason`` of reports; NLOPT_OTHER and NLOPT_FAILURE add detail).
+MESSAGES: dict[Status, str] = {
+    Status.CONVERGED: "converged",
+    Status.MAX_ITER: "max_iter",
+    Status.MAX_EVAL: "max_eval",
+    Status.CALLBACK: "stopped by callback",
+    Status.NON_FINITE_START: "non-finite start",
+    Status.STEP_TOO_SMALL: "step too small",
+    Status.DAMPING_DIVERGED: "damping diverged",
+    Status.NLOPT_SUCCESS: "nlopt success",
+    Status.NLOPT_STOPVAL: "nlopt stopval",
+    Status.NLOPT_FTOL: "nlopt ftol",
+    Status.NLOPT_XTOL: "nlopt xtol",
+    Status.NLOPT_MAXTIME: "nlopt maxtime",
+    Status.NLOPT_OTHER: "nlopt result",
+    Status.ROUNDOFF_LIMITED: "roundoff limited",
+    Status.FORCED_STOP: "forced stop",
+    Status.NLOPT_FAILURE: "nlopt failure",
+    Status.REFRESH: "refresh",
+}
+
+
+@dataclass
+class SolveResult:
+    """What one backend run (:func:`~uvbake.flatten.solvers.lm.levenberg_marquardt` or
+    :func:`~uvbake.flatten.solvers.lbfgs.lbfgs`) reports besides the end point.
+
+    Attributes
+    ----------
+    energy, grad_norm : float
+        F and the Euclidean norm of its gradient over the free unknowns at the end point.
+    iterations, evaluations : int
+        Iterations (LM: factorisations; L-BFGS: improving evaluations) and F+gradient evaluations.
+    converged : bool
+        grad_norm < tol.
+    history : (k,) float array
+        F at the start and after every iteration.
+    status : Status
+        Why the run stopped; ``message`` says it in words.
+    solve_time_s : float
+    extra : dict
+        Backend details: LM ``linear_solver``, ``saddle_escapes``; L-BFGS ``restarts``,
+        ``nlopt_results``, ``preconditioner``, ``preconditioner_builds``.
+    """
+
+    energy: float
+    grad_norm: float
+    iterations: int
+    evaluations: int
+    converged: bool
+    history: np.ndarray
+    status: Status
+    message: str = ""
+    solve_time_s: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.message:
+            self.message = MESSAGES[self.status]
+
+    @property
+    def stop_reason(self) -> str:
+        """The status in words (as the reports spell it)."""
+        return self.message
 
 
 @dataclass
@@ -30,6 +124,8 @@ class ParamResult:
         (after a continuation stage, whose own history is in ``extra["continuation"]``).
     time_s : float
         Wall time of init plus solve.
+    status : Status
+        Why the last solver run stopped (``stop_reason`` in words).
     """
 
     uv: np.ndarray
@@ -46,9 +142,10 @@ class ParamResult:
     energy_init: float = float("nan")
     stop_reason: str = ""
     n_evaluations: int = 0
-    extra: dict = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+    status: Status | None = None
 
-    def to_dict(self, *, with_uv=False):
+    def to_dict(self, *, with_uv: bool = False) -> dict[str, Any]:
         """JSON-ready summary (UVs left out unless asked)."""
         d = {
             "alpha": self.alpha,

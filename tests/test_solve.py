@@ -1,0 +1,115 @@
+"""The chart-solve machinery: SolveOptions, the shared result and status, executors, BLAS limits, PD tests."""
+
+import dataclasses
+import multiprocessing
+import pickle
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from threadpoolctl import threadpool_info, threadpool_limits
+
+from meshgen import bumpy_disk, cone, plane
+from uvbake.errors import InputError
+from uvbake.flatten.options import DEFAULTS, SolveOptions
+from uvbake.flatten.solve import limit_blas_threads, parameterize, parameterize_charts, solve_chart
+from uvbake.flatten.solvers.linalg import cholmod_available, is_positive_definite
+from uvbake.flatten.solvers.result import MESSAGES, Status
+
+
+def _charts():
+    return [bumpy_disk(10), plane(7, 6), cone(10, 4), bumpy_disk(8, seed=3)]
+
+
+def _blas_threads():
+    return sorted((d["filepath"], d["num_threads"]) for d in threadpool_info() if d["user_api"] == "blas")
+
+
+# ---- options -----------------------------------------------------------------------------------
+
+def test_options_are_frozen_and_validated_once_with_the_parameter_names():
+    o = SolveOptions(alpha=1)
+    assert o.alpha == 1.0 and isinstance(o.alpha, float)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        o.alpha = 0.3
+    for bad, word in [(dict(alpha=1.5), "alpha"), (dict(alpha="x"), "alpha"), (dict(init="lsqm"), "init"),
+                      (dict(backend="newton"), "backend"), (dict(tol=0.0), "tol"), (dict(max_iter=2.5), "max_iter"),
+                      (dict(linear_solver="mkl"), "linear_solver")]:
+        with pytest.raises(InputError, match=word):
+            SolveOptions(**bad)
+    with pytest.raises(InputError, match="alpha"):
+        o.replace(alpha=-0.1)
+    # one set of defaults: parameterize's signature takes them from DEFAULTS
+    import inspect
+
+    sig = inspect.signature(parameterize).parameters
+    for f in dataclasses.fields(SolveOptions):
+        assert sig[f.name].default == getattr(DEFAULTS, f.name)
+
+
+# ---- status ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("backend", ["lm", "lbfgs"])
+def test_both_backends_report_a_status_and_its_message(backend):
+    V, F = bumpy_disk(10)
+    r = parameterize(V, F, alpha=0.5, backend=backend)
+    assert r.converged and r.status == Status.CONVERGED and r.stop_reason == MESSAGES[Status.CONVERGED]
+    r = parameterize(V, F, alpha=0.9, init="random", max_iter=3, continuation=False, backend=backend)
+    assert not r.converged and r.status == Status.MAX_ITER and r.stop_reason == "max_iter"
+
+
+# ---- executors and BLAS threads ------------------------------------------------------------------
+
+def test_blas_thread_limits_are_restored_after_parameterize_charts():
+    cholmod_available()          # CHOLMOD's BLAS loaded before the count, as the solves load it
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        assert before and all(n == 2 for _, n in before)
+        for _ in range(2):
+            parameterize_charts(_charts(), workers=3, alpha=0.5)
+            assert _blas_threads() == before
+        parameterize(*bumpy_disk(8), alpha=0.5)
+        assert _blas_threads() == before
+
+
+def test_solve_chart_pickles_and_any_executor_gives_the_same_bytes():
+    charts = _charts()
+    options = SolveOptions(alpha=0.5)
+    assert pickle.loads(pickle.dumps(solve_chart)) is solve_chart
+    serial = parameterize_charts(charts, workers=1, options=options)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        threads = parameterize_charts(charts, executor=pool, options=options)
+    ctx = multiprocessing.get_context("spawn")   # fork after threads can deadlock
+    with ProcessPoolExecutor(max_workers=2, mp_context=ctx, initializer=limit_blas_threads) as pool:
+        procs = parameterize_charts(charts, executor=pool, options=options)
+    for a, b, c in zip(serial, threads, procs):
+        assert a.converged
+        # same input and options, one BLAS thread everywhere: identical bits whatever runs the solve
+        assert np.array_equal(a.uv, b.uv) and np.array_equal(a.uv, c.uv)
+        assert a.iterations == b.iterations == c.iterations
+
+
+# ---- positive-definite test ------------------------------------------------------------------------
+
+def _methods():
+    return ["superlu"] + (["cholmod"] if cholmod_available() else [])
+
+
+@pytest.mark.parametrize("method", _methods())
+def test_indefinite_matrices_are_rejected_by_superlu_as_by_cholmod(method):
+    rng = np.random.default_rng(0)
+    n = 12
+    B = rng.standard_normal((n, n))
+    pd = B @ B.T + n * np.eye(n)                      # positive definite
+    swap = np.array([[0.0, 1.0], [1.0, 0.0]])          # zero diagonal, eigenvalues +-1: SuperLU must pivot
+    cases = [
+        (pd, True),
+        (np.block([[pd, np.zeros((n, 2))], [np.zeros((2, n)), swap]]), False),
+        (np.array([[1.0, 2.0], [2.0, 1.0]]), False),   # positive diagonal, eigenvalues 3 and -1
+        (pd - (np.linalg.eigvalsh(pd)[0] - 1e-3) * np.eye(n), True),    # smallest eigenvalue 1e-3
+        (pd - (np.linalg.eigvalsh(pd)[0] + 1.0) * np.eye(n), False),    # smallest eigenvalue -1
+    ]
+    for M, expected in cases:
+        assert (np.linalg.eigvalsh(M)[0] > 0) == expected    # the reference verdict
+        assert is_positive_definite(sp.csc_matrix(M), method=method) == expected

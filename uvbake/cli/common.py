@@ -1,0 +1,53 @@
+"""What every ``uvbake`` subcommand shares: the argument parser and the one error-to-exit-code map.
+
+Exit codes: 0 success; 1 a failed result (an invalid atlas or check, a solve that failed, backends
+that disagree); 2 bad input (:class:`uvbake.InputError`, bad arguments, unreadable paths); 3 a bug;
+130 interrupted. Errors print one line, never a traceback (set UVBAKE_DEBUG=1 to see one).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Callable
+from typing import NoReturn
+
+from uvbake.errors import InputError, UvbakeError
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse whose usage errors are uvbake input errors: one line, exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        raise InputError(f"{message}; see `{self.prog} --help`")
+
+
+def exit_code(exc: BaseException) -> tuple[int, str]:
+    """The exit status of an exception and the words that introduce its one-line message."""
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_INTERRUPTED, "interrupted; no output was written"
+    if isinstance(exc, InputError):
+        return EXIT_BAD_INPUT, f"error: {exc}"
+    if isinstance(exc, UvbakeError):
+        return EXIT_FAILED, f"failed: {exc}"
+    if isinstance(exc, OSError):
+        return EXIT_BAD_INPUT, (f"error: {exc.strerror or exc} ({exc.filename or ''}); "
+                                "check the path and permissions")
+    return EXIT_BUG, f"internal error: {type(exc).__name__}: {exc} (rerun with UVBAKE_DEBUG=1 and report it)"
+
+
+def run(prog: str, command: Callable[[], int]) -> int:
+    """Run a command; map what it raises to one line on stderr and an exit status."""
+    try:
+        return command()
+    except SystemExit as exc:                     # --help, --version
+        return int(exc.code or 0) if isinstance(exc.code, (int, type(None))) else EXIT_BAD_INPUT
+    except BaseException as exc:  # noqa: BLE001 - one line, no traceback, whatever went wrong
+        if os.environ.get("UVBAKE_DEBUG") and not isinstance(exc, KeyboardInterrupt):
+            raise
+        code, message = exit_code(exc)
+        print(f"{prog}: {message}", file=sys.stderr)
+        return code

@@ -1,0 +1,93 @@
+"""``SolveOptions``: the options of one chart solve, validated once, with their defaults in one place.
+
+The CLI, :func:`uvbake.unwrap`, :func:`uvbake.parameterize` and :func:`uvbake.parameterize_charts`
+take their defaults from :data:`DEFAULTS` and build one ``SolveOptions``; the solvers trust it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import numbers
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from uvbake.errors import InputError
+from uvbake.flatten.solvers.linalg import LINEAR_SOLVERS
+from uvbake.flatten.starts import INITS
+
+BACKENDS = ("lm", "lbfgs")
+
+#: alpha of the continuation stage for invalid starts (see :func:`uvbake.flatten.solve.solve_chart`)
+CONTINUATION_ALPHA = 0.1
+
+
+def _choices(values: tuple[str, ...]) -> str:
+    return ", ".join(repr(v) for v in values)
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """How to flatten a chart. Invalid values raise :class:`uvbake.InputError` at construction.
+
+    Attributes
+    ----------
+    alpha : float in [0, 1]
+        Weight of area preservation; 1 - alpha weighs angle preservation.
+    init : {"lscm", "tutte", "random"}
+        Start map ("random" is seeded by ``seed``).
+    backend : {"lm", "lbfgs"}
+        Levenberg-Marquardt with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
+    tol : float > 0
+        Stop when the scale-free gradient norm is under ``tol``.
+    max_iter : int >= 0
+        Iteration cap (LM: factorisations, rejected steps included).
+    seed : int
+        Seed of the random start.
+    linear_solver : {"auto", "cholmod", "superlu"}
+    continuation : bool
+        Solve invalid starts at alpha = 0.1 first (see :func:`uvbake.parameterize`).
+    """
+
+    alpha: float = 0.5
+    init: str = "lscm"
+    backend: str = "lm"
+    tol: float = 1e-8
+    max_iter: int = 1000
+    seed: int = 0
+    linear_solver: str = "auto"
+    continuation: bool = True
+
+    def __post_init__(self) -> None:
+        try:
+            alpha = float(self.alpha)
+        except (TypeError, ValueError):
+            raise InputError(f"alpha={self.alpha!r} is not a number; pass a weight between 0 and 1") from None
+        if not (0.0 <= alpha <= 1.0):
+            raise InputError(f"alpha={self.alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) "
+                             "and 1 (areas only)")
+        object.__setattr__(self, "alpha", alpha)
+        if self.init not in INITS:
+            raise InputError(f"init={self.init!r} is not one of {_choices(INITS)}")
+        if self.backend not in BACKENDS:
+            raise InputError(f"backend={self.backend!r} is not one of {_choices(BACKENDS)}")
+        if not (isinstance(self.tol, numbers.Real) and np.isfinite(self.tol) and self.tol > 0):
+            raise InputError(f"tol={self.tol!r} must be a positive number (the scale-free gradient norm to reach)")
+        if not isinstance(self.max_iter, numbers.Real) or int(self.max_iter) != self.max_iter or self.max_iter < 0:
+            raise InputError(f"max_iter={self.max_iter!r} must be a non-negative integer")
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise InputError(f"linear_solver={self.linear_solver!r} is not one of {_choices(LINEAR_SOLVERS)}")
+
+    def replace(self, **changes: Any) -> SolveOptions:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def report(self) -> dict[str, Any]:
+        """The options as the JSON report lists them."""
+        return dict(alpha=self.alpha, init=self.init, backend=self.backend, tol=self.tol,
+                    max_iter=self.max_iter, seed=self.seed, continuation=self.continuation)
+
+
+#: The defaults, for signatures and the CLI: ``alpha=DEFAULTS.alpha``.
+DEFAULTS = SolveOptions()
