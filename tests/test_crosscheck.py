@@ -7,8 +7,9 @@ import pytest
 
 from conftest import SAMPLE_SCENES, shared_mesh
 from uvbake.mesh.charts import split_charts
-from uvbake.analysis.crosscheck import CrossCheckError, cross_check, cross_check_charts, rigid_align, uv_diameter
+from uvbake.analysis.crosscheck import CrossCheckError, cross_check, cross_check_charts, uv_diameter
 from uvbake.flatten.energy import DistortionEnergy
+from uvbake.mesh.arrays import rigid_align
 from uvbake.errors import SolverError
 from uvbake.io.load import load_mesh
 

@@ -60,7 +60,7 @@ def test_same_minimum_as_levenberg_marquardt():
     assert i_lm.converged and i_lb.converged
     assert i_lb.energy == pytest.approx(i_lm.energy, rel=1e-10)
     # F is invariant to rigid motions only; after removing them the maps coincide
-    from uvbake.analysis.crosscheck import rigid_align
+    from uvbake.mesh.arrays import rigid_align
 
     uv_lm, uv_lb = energy.to_uv(x_lm, start), energy.to_uv(x_lb, start)
     _, _, al = rigid_align(uv_lb, uv_lm)

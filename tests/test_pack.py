@@ -152,23 +152,6 @@ def test_gutter_detects_overlap_and_nesting():
     assert min_chart_distance([sq, sq + [1.5, 0.0]], [F, F]) == pytest.approx(0.5)
 
 
-def test_xatlas_keeps_gutter_shape_and_orientation():
-    pytest.importorskip("xatlas")
-    uvs, faces = chart_set(5, n=6)
-    res = pack_charts(uvs, faces, texture_size_px=512, gutter_px=4, method="xatlas")
-    assert min_gap(res.uv, faces) >= 4 / 512 * (1 - 1e-9)
-    for uv, F, q in zip(uvs, faces, res.uv):
-        assert q.min() >= 0 and q.max() <= 1
-        np.testing.assert_allclose(signed_areas(q, F), res.scale ** 2 * signed_areas(uv, F), rtol=1e-8, atol=1e-15)
-
-
-def test_rectpack_method_keeps_gutter():
-    pytest.importorskip("rectpack")
-    uvs, faces = chart_set(6, n=6)
-    res = pack_charts(uvs, faces, texture_size_px=512, gutter_px=4, method="rectpack")
-    assert min_gap(res.uv, faces) >= 4 / 512 * (1 - 1e-9)
-
-
 def test_elongated_chart_rotated_37_degrees_comes_out_axis_aligned():
     uv, F = grid_chart(10, 2, 5.0, 1.0, theta=np.radians(37.0), shift=(2.0, -1.0))
     res = pack_charts([uv], [F], texture_size_px=1024, gutter_px=4)

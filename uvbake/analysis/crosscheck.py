@@ -28,6 +28,7 @@ import scipy.sparse as sp
 
 from uvbake.errors import InputError, SolverError
 from uvbake.flatten.solvers.linalg import is_positive_definite
+from uvbake.mesh.arrays import rigid_align
 
 #: Second-order test: H + SADDLE_SHIFT * max(diag H) * I must be positive definite at a minimum
 #: (the gauge directions give eigenvalues ~1e-14 max diag H, a real saddle -1e-2 and below).
@@ -95,26 +96,6 @@ class CrossCheckResult:
             if ok is False:
                 s += f"; the {which} end point is not a local minimum (negative curvature)"
         return s
-
-
-def rigid_align(P, Q):
-    """The rotation R (2x2, det +1) and translation t minimising sum |R p_i + t - q_i|^2.
-
-    Returns
-    -------
-    R, t, and the aligned copy of P (P @ R.T + t).
-    """
-    P = np.asarray(P, dtype=np.float64)
-    Q = np.asarray(Q, dtype=np.float64)
-    cp, cq = P.mean(axis=0), Q.mean(axis=0)
-    A, B = P - cp, Q - cq
-    # in 2D the optimal rotation angle has a closed form (Kabsch without the reflection case)
-    s = np.sum(A[:, 0] * B[:, 1] - A[:, 1] * B[:, 0])
-    c = np.sum(A[:, 0] * B[:, 0] + A[:, 1] * B[:, 1])
-    th = np.arctan2(s, c)
-    R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
-    t = cq - cp @ R.T
-    return R, t, P @ R.T + t
 
 
 def uv_diameter(uv):

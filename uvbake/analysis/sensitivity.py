@@ -44,6 +44,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uvbake.errors import InputError
+from uvbake.io.atomic import atomic_write_bytes
+from uvbake.mesh.arrays import signed_areas, triangle_areas
 
 #: F* under this (times the number of triangles) is zero to rounding: S is then undefined (NaN).
 ZERO_ENERGY = 1e-12
@@ -124,7 +126,7 @@ class SweepResult:
 
     def save_json(self, path):
         text = json.dumps(_clean(self.to_dict()), indent=2, allow_nan=False)
-        _atomic_write(path, (text + "\n").encode())
+        atomic_write_bytes(path, (text + "\n").encode())
 
     CSV_COLUMNS = ("alpha", "energy", "sensitivity", "dF_dalpha", "sensitivity_envelope", "dF_dalpha_envelope",
                    "energy_area", "energy_angle", "iterations", "evaluations", "n_flipped", "overlaps",
@@ -138,7 +140,7 @@ class SweepResult:
                 v = row[c]
                 cells.append("" if v is None else (repr(float(v)) if isinstance(v, float) else str(v)))
             lines.append(",".join(cells))
-        _atomic_write(path, ("\n".join(lines) + "\n").encode())
+        atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
 
     def plot(self, path, *, title=None, dpi=120):
         """Write a PNG: F per iteration for every alpha (log scale) and F*, S against alpha."""
@@ -190,7 +192,7 @@ class SweepResult:
 
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi)
-        _atomic_write(path, buf.getvalue())
+        atomic_write_bytes(path, buf.getvalue())
 
 
 def require_matplotlib():
@@ -321,7 +323,7 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
         validate = _validator()
         if validate is None:
             notes.append("uvbake's validator is not importable: overlaps not counted")
-    area3d = [float(np.sum(_areas(c.V, c.F))) for c in charts]
+    area3d = [float(np.sum(triangle_areas(c.V, c.F))) for c in charts]
     m_total = int(sum(len(c.F) for c in charts))
     prev = [None] * len(charts)
     prev_alpha = None
@@ -343,7 +345,7 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
             da, dg = e.per_triangle(r.uv)
             d_area += float(da.sum())
             d_angle += float(dg.sum())
-            uv_area += float(np.sum(np.abs(_uv_areas(r.uv, c.F))))
+            uv_area += float(np.sum(np.abs(signed_areas(r.uv, c.F))))
             if validate is not None:
                 try:
                     n_over += int(len(validate(r.uv, c.F).overlap_pairs))
@@ -424,17 +426,6 @@ def _sum_histories(histories):
     return total
 
 
-def _areas(V, F):
-    X = np.asarray(V, dtype=np.float64)[F]
-    return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
-
-
-def _uv_areas(uv, F):
-    U = np.asarray(uv, dtype=np.float64)[F]
-    e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
-    return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-
-
 def _clean(obj):
     """JSON-safe copy: non-finite floats become None, numpy scalars Python numbers."""
     if isinstance(obj, dict):
@@ -455,13 +446,3 @@ def _num(v):
         return None
     v = float(v)
     return v if np.isfinite(v) else None
-
-
-def _atomic_write(path, data: bytes):
-    """Write ``data`` to ``path`` atomically (see :func:`uvbake.io.atomic_write`)."""
-    from uvbake.io.atomic import atomic_write
-
-    with atomic_write(path, "wb") as fh:
-        fh.write(data)
-
-

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def _rot(theta):
+def rotation_2d(theta):
     c, s = np.cos(theta), np.sin(theta)
     return np.array([[c, -s], [s, c]])
 

@@ -13,41 +13,8 @@ best long side, best area, bottom-left, contact point) and several orders; the b
 that do not overlap keep any two charts at least ``gutter_px`` texels apart and every chart half a
 gutter from the atlas border, by construction.
 
-Method ``"xatlas"`` hands the same charts to the xatlas packer (``xatlas.Atlas.add_uv_mesh`` +
-``PackOptions``, bisecting ``texels_per_unit`` until everything fits in one atlas); xatlas packs the
-rasterised chart shapes, not boxes, so charts may nest. uvbake then measures the rigid transform xatlas
-applied to each chart and re-applies it in float64 (xatlas returns float32), checks the charts are
-``gutter_px`` apart exactly (segment distances) and, if not, repacks with a larger padding.
-
-Method ``"rectpack"`` is rectpack's MaxRects (best short side fit, area order, 2^20 integer grid) on the
-same padded boxes, for comparison.
-
-Choice of the default (``"auto"`` = ``"maxrects"``), from ``python bench/pack.py`` (real flattened charts,
-alpha 0.5; efficiency at texture 1024/2048 and gutter 2/4 px; time per call at 1024 px, 4 px)::
-
-    scene              charts  maxrects            xatlas              rectpack
-    scene.ply (old, 5)    5    61.7-62.8 %  0.02 s  62.0-62.4 %  0.9 s  61.7-62.8 %  0.01 s
-    scene.ply (now, 8)    8    80.7-82.5 %          60.3-64.8 %         77.7-79.6 %
-    multi_component.ply   4    79.2-80.2 %  0.02 s  55.5-63.9 %  1.0 s  79.2-80.2 %  0.01 s
-    beetle, 30 k-means    30   58.2-59.9 %  0.6 s   52.5-56.3 %  2.7 s  55.4-57.1 %  0.1 s
-    camelhead, 40 k-means 45   61.3-63.6 %  0.6 s   fails (*)           60.3-62.7 %  0.16 s
-    median                     62.6 %               56.2 %              62.2 %
-
-    (*) xatlas 0.0.11 leaves a vertex of a degenerate chart unplaced.
-
-Own MaxRects is best or within 0.3 points of the best in every cell (xatlas 62.0 % vs 61.7 % on scene.ply
-at 1024 px, 4 px) and 2-4 points better than rectpack with many charts (it tries five placement rules
-and five orders where rectpack runs one); it costs more time (about 0.6 s
-for 30-45 charts) but needs no dependency (rectpack ships only as an sdist). xatlas packs shapes, yet
-loses here: the charts are nearly convex (their minimum-area rectangles are 66-97 % full), its
-padding leaves 2p+1 texels (uvbake searches p for the gutter, so gaps overshoot), its 90-degree turn
-and "rotate to axis" options mirror charts (so uvbake turns them off and pre-rotates), and several
-``add_uv_mesh`` calls scrambled faces (uvbake adds one mesh). The 70 % target is met on
-multi_component.ply (80 %) and on today's scene.ply (80.7-82.5 %); the earlier scene.ply (62.8 %) had
-five charts that were near-rectangles
-(2.06 x 1.03, 1.24 x 1.01, two 1.03 x 1.02, 1.02 x 0.82) whose sides all exceed 0.8, so a square atlas
-needs three rows or columns; no packer measured did better. The k-means pieces fill only 66-70 % of
-their minimum-area rectangles, which caps any box packer below 70 %.
+Other placers (bench/packers.py wraps xatlas and rectpack, the peers the default was measured
+against: docs/decisions/packing.md) plug in as ``method=placer``.
 
 Efficiency (``PackResult.efficiency``) is defined as::
 
@@ -62,15 +29,19 @@ from __future__ import annotations
 
 import numbers
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from uvbake.atlas.distance import min_chart_distance
-from uvbake.atlas.maxrects import _RULES, _maxrects, _orders, _rot, min_area_rect
+from uvbake.atlas.maxrects import _RULES, _maxrects, _orders, min_area_rect, rotation_2d
 from uvbake.errors import InputError
+from uvbake.mesh.arrays import signed_areas
 
-METHODS = ("auto", "maxrects", "xatlas", "rectpack")
+#: what a placer returns: common scale, per-chart rotation and offset, placed UVs, measured gap (px) or None
+Placement = tuple[float, np.ndarray, np.ndarray, list[np.ndarray], "float | None"]
+METHODS = ("auto", "maxrects")
 DEFAULT_METHOD = "maxrects"
 
 _EPS_PAD = 1e-9          # extra padding in atlas units, so rounding never eats into the gutter
@@ -150,8 +121,9 @@ def _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method):
     if g >= N:
         raise InputError(f"gutter_px={g} leaves no room in a {N}-texel atlas; "
                          f"reduce gutter_px or increase texture_size_px")
-    if not isinstance(method, str) or method not in METHODS:
-        raise InputError(f"method={method!r} is not one of {', '.join(METHODS)}; pick one of those")
+    if not callable(method) and (not isinstance(method, str) or method not in METHODS):
+        raise InputError(f"method={method!r} is not one of {', '.join(METHODS)} or a placer function; "
+                         "pick one of those")
     if chart_uvs is None or len(chart_uvs) == 0:
         raise InputError("the chart list is empty; pass at least one chart's UVs and faces to pack")
     if chart_faces is None or len(chart_faces) != len(chart_uvs):
@@ -184,16 +156,10 @@ def _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method):
 
 # --------------------------------------------------------------------------------------- geometry
 
-def triangle_areas(uv, F):
-    """Signed areas of the triangles ``F`` of a UV map (positive = counter-clockwise)."""
-    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-
-
 # ----------------------------------------------------------------------------- own MaxRects packer
 
 
-def _bisect_scale(feasible, s_hi, lo=None, lo_payload=None):
+def bisect_scale(feasible, s_hi, lo=None, lo_payload=None):
     """Largest s <= s_hi with feasible(s) (assumed roughly monotone), to _REL_TOL; returns (s, payload).
 
     ``lo`` (with its ``lo_payload``) is a scale already known to be feasible; without it one is found by
@@ -253,14 +219,14 @@ def _pack_boxes(wh, pad, packers):
         def feasible(s, packer=packer):
             return packer(s * wh + pad)
         if best_s is None:
-            best_s, best_p = _bisect_scale(feasible, s_hi)
+            best_s, best_p = bisect_scale(feasible, s_hi)
             continue
         s_try = best_s * (1 + _REL_TOL)
         if s_try > s_hi:
             break
         p = feasible(s_try)
         if p is not None:
-            best_s, best_p = _bisect_scale(feasible, s_hi, lo=s_try, lo_payload=p)
+            best_s, best_p = bisect_scale(feasible, s_hi, lo=s_try, lo_payload=p)
     return best_s, best_p
 
 
@@ -269,39 +235,18 @@ def _own_packers(wh, allow_turn=True):
     return [lambda sizes, o=o, r=r: _maxrects(sizes, o, r, allow_turn) for r in _RULES for o in _orders(wh)]
 
 
-def _rectpack_packer(sizes, *, grid=1 << 20):
-    import rectpack
+def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
+                packers: list[Callable[[np.ndarray], Any]] | None = None) -> Placement:
+    """Rotate each chart to its minimum-area rectangle, pad by the gutter and pack the boxes.
 
-    ints = np.ceil(sizes * grid).astype(np.int64)
-    p = rectpack.newPacker(mode=rectpack.PackingMode.Offline, bin_algo=rectpack.PackingBin.BFF,
-                           pack_algo=rectpack.MaxRectsBssf, sort_algo=rectpack.SORT_AREA, rotation=True)
-    for i, (w, h) in enumerate(ints):
-        p.add_rect(int(w), int(h), rid=i)
-    p.add_bin(grid, grid, count=1)
-    p.pack()
-    rects = p.rect_list()
-    if len(rects) != len(sizes):
-        return None
-    pos = np.zeros((len(sizes), 2))
-    turned = np.zeros(len(sizes), dtype=bool)
-    for _, x, y, w, h, rid in rects:
-        pos[rid] = (x / grid, y / grid)
-        turned[rid] = (int(w), int(h)) != (int(ints[rid, 0]), int(ints[rid, 1]))
-    return pos, turned
-
-
-def _place_boxes(uvs, faces, N, g, method):
+    ``packers`` map padded box sizes (k,2) to (positions (k,2), turned (k,) bool) or None when they do
+    not fit; default: uvbake's MaxRects with every placement rule and order. A *placer* as
+    :func:`pack_charts` takes one: (s, rotation, offset, placed UVs, measured gap in texels or None).
+    """
     pad = g / N + _EPS_PAD
     rects = [min_area_rect(uv) for uv in uvs]
     wh = np.array([[w, h] for _, w, h in rects])
-    if method == "rectpack":
-        try:
-            import rectpack  # noqa: F401
-        except ImportError:
-            raise InputError("method='rectpack' needs the rectpack package; pip install rectpack, "
-                             "or use method='maxrects'") from None
-        packers = [_rectpack_packer]
-    else:
+    if packers is None:
         packers = _own_packers(wh)
     s, payload = _pack_boxes(wh, pad, packers)
     if s is None:
@@ -314,106 +259,12 @@ def _place_boxes(uvs, faces, N, g, method):
     for i, uv in enumerate(uvs):                # one iteration per chart
         theta = rects[i][0] + (np.pi / 2 if turned[i] else 0.0)
         theta = float(np.arctan2(np.sin(theta), np.cos(theta)))
-        q = s * (uv @ _rot(theta).T)
+        q = s * (uv @ rotation_2d(theta).T)
         lo = q.min(axis=0)
         off = pos[i] + pad / 2 - lo
         rotation[i], offset[i] = theta, off
         out.append(q + off)
     return s, rotation, offset, out, None
-
-
-# ------------------------------------------------------------------------------------------ xatlas
-
-def _rigid_fit(P, Q):
-    """Rotation angle theta, scale k and offset t (no reflection) with Q ~ k R(theta) P + t."""
-    pc, qc = P.mean(axis=0), Q.mean(axis=0)
-    A, B = P - pc, Q - qc
-    # for 2D similarity without reflection: theta from the complex least-squares ratio
-    num = (A[:, 0] * B[:, 1] - A[:, 1] * B[:, 0]).sum()
-    den = (A[:, 0] * B[:, 0] + A[:, 1] * B[:, 1]).sum()
-    theta = float(np.arctan2(num, den))
-    nrm = (A * A).sum()
-    k = float(np.hypot(num, den) / nrm) if nrm > 0 else 0.0
-    t = qc - k * (_rot(theta) @ pc)
-    return theta, k, t
-
-
-def _xatlas_try(pre, faces, N, padding, tpu, brute_force):
-    """One xatlas packing of the pre-rotated charts as a single UV mesh; per-chart atlas UVs or None."""
-    import xatlas
-
-    offs = np.cumsum([0] + [len(u) for u in pre])
-    U = np.ascontiguousarray(np.vstack(pre), dtype=np.float32)
-    FF = np.ascontiguousarray(np.vstack([F + o for F, o in zip(faces, offs)]), dtype=np.uint32)
-    atlas = xatlas.Atlas()
-    atlas.add_uv_mesh(U, FF)      # one mesh: several add_uv_mesh calls scrambled faces in xatlas 0.0.11
-    po = xatlas.PackOptions()
-    po.resolution = N
-    po.padding = int(padding)
-    po.texels_per_unit = float(tpu)
-    po.bilinear = False
-    po.bruteForce = bool(brute_force)
-    po.rotate_charts = False            # xatlas's 90-degree turn swaps u and v: a mirror
-    po.rotate_charts_to_axis = False    # its axis basis can be left-handed (mirrors); uvbake pre-rotates
-    atlas.generate(pack_options=po)
-    if atlas.atlas_count != 1:
-        return None
-    vmap, _, auv = atlas.get_mesh(0)
-    atlas_index, _ = atlas.get_mesh_vertex_assignment(0)
-    if np.any(atlas_index == np.iinfo(np.uint32).max):
-        raise InputError(f"xatlas left {int(np.sum(atlas_index == np.iinfo(np.uint32).max))} chart vertices "
-                         f"unplaced (it drops charts with degenerate triangles); use method='maxrects'")
-    if len(vmap) != len(U) or np.any(atlas_index != 0) or np.any(np.sort(vmap) != np.arange(len(U))):
-        return None               # split or merged vertices: not the same charts any more
-    Q = np.empty((len(U), 2))
-    Q[vmap] = auv
-    return [Q[offs[i]:offs[i + 1]] for i in range(len(pre))]
-
-
-def _place_xatlas(uvs, faces, N, g, brute_force=False):
-    try:
-        import xatlas  # noqa: F401
-    except ImportError:
-        raise InputError("method='xatlas' needs the xatlas package; pip install xatlas, "
-                         "or use method='maxrects'") from None
-    total = sum(np.abs(triangle_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
-    if total <= 0:
-        raise InputError("all charts have zero area; nothing to pack (check the parameterization)")
-    theta0 = np.array([min_area_rect(uv)[0] for uv in uvs])
-    pre = [uv @ _rot(t).T for uv, t in zip(uvs, theta0)]
-    p0 = (g + 1) // 2        # xatlas leaves about 2 * padding + 1 texels between charts
-    for padding in range(p0, g + 3):
-        s, xuv = _bisect_scale(lambda s: _xatlas_try(pre, faces, N, padding, s * N, brute_force),
-                               1.0 / np.sqrt(total))
-        if s is None:
-            raise InputError(f"gutter_px={g} is too large for {len(uvs)} charts in a {N}-texel atlas; "
-                             f"reduce gutter_px or increase texture_size_px")
-        # re-apply xatlas's placement in float64 at exactly the common scale (xatlas returns float32 and
-        # scales each chart by up to about 1 % differently): keep each chart's centroid where xatlas put it
-        rotation = np.zeros(len(uvs))
-        offset = np.zeros((len(uvs), 2))
-        out = []
-        for i, (uv, P, Q) in enumerate(zip(uvs, pre, xuv)):
-            dtheta, _, _ = _rigid_fit(P, Q)
-            if abs(dtheta) > 1e-3 or np.sign(triangle_areas(Q, faces[i])).sum() * np.sign(
-                    triangle_areas(P, faces[i])).sum() < 0:
-                raise InputError("xatlas turned or mirrored a chart; use method='maxrects'")
-            theta = float(np.arctan2(np.sin(theta0[i]), np.cos(theta0[i])))
-            q = s * (uv @ _rot(theta).T)
-            off = Q.mean(axis=0) - q.mean(axis=0)
-            rotation[i], offset[i] = theta, off
-            out.append(q + off)
-        lo = np.min([o.min(axis=0) for o in out], axis=0)
-        hi = np.max([o.max(axis=0) for o in out], axis=0)
-        if np.any(hi - lo > 1.0):
-            continue
-        shift = np.clip(-lo, 0, None) - np.clip(hi - 1.0, 0, None)   # float32 rounding at the border
-        out = [o + shift for o in out]
-        offset += shift
-        gap = min_chart_distance(out, faces) if len(out) > 1 else np.inf
-        if gap * N >= g * (1 + 1e-9):
-            return s, rotation, offset, out, gap * N
-    raise InputError(f"xatlas could not keep charts {g} texels apart; use method='maxrects'")
 
 
 # ---------------------------------------------------------------------------- distance (checking)
@@ -438,8 +289,11 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=4, ro
     rotate : bool
         Rotate charts (to their minimum-area rectangle, and by 90 degrees where it packs better). With
         ``rotate=False`` the charts keep their orientation and are only translated (maxrects/rectpack).
-    method : "auto" | "maxrects" | "xatlas" | "rectpack"
-        The packer; "auto" is "maxrects" (see the module docstring for the measurements).
+    method : "auto" | "maxrects" | callable
+        The packer; "auto" is "maxrects" (docs/decisions/packing.md). A callable is a placer
+        ``placer(uvs, faces, texture_size_px, gutter_px) -> (s, rotation, offset, uvs, gap_px)``
+        (see :func:`place_boxes`; bench/packers.py wraps xatlas and rectpack this way), and
+        ``PackResult.method`` is its ``__name__``.
 
     Returns
     -------
@@ -450,35 +304,34 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=4, ro
     if not isinstance(rotate, (bool, np.bool_)):
         raise InputError(f"rotate={rotate!r} is not a bool; pass rotate=True or rotate=False")
     used = DEFAULT_METHOD if method == "auto" else method
+    name = used if isinstance(used, str) else getattr(used, "__name__", "custom")
     extents = [np.ptp(uv, axis=0).max() for uv in uvs]
     if max(extents) == 0.0:
         raise InputError("every chart's UVs collapse to a point; nothing to pack (check the parameterization)")
-    if used == "xatlas":
+    if callable(used):
         if not rotate:
-            raise InputError("method='xatlas' always rotates charts; use rotate=True or method='maxrects'")
-        s, rotation, offset, out, gap = _place_xatlas(uvs, faces, N, g)
+            raise InputError(f"method={name} always rotates charts; use rotate=True or method='maxrects'")
+        s, rotation, offset, out, gap = used(uvs, faces, N, g)
     elif rotate:
-        s, rotation, offset, out, gap = _place_boxes(uvs, faces, N, g, used)
+        s, rotation, offset, out, gap = place_boxes(uvs, faces, N, g)
     else:
-        s, rotation, offset, out, gap = _place_unrotated(uvs, faces, N, g, used)
+        s, rotation, offset, out, gap = _place_unrotated(uvs, faces, N, g)
     # a chart that cannot fit: the whole atlas would give the largest chart less than one texel
     if s * max(extents) * N < 1.0:
         raise InputError(f"the charts cannot fit a {N}-texel atlas with gutter_px={g}: the largest chart would be "
                          f"under one texel; reduce gutter_px or increase texture_size_px")
-    area = sum(np.abs(triangle_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
+    area = sum(np.abs(signed_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
     eff = float(s * s * area)
     return PackResult(uv=out, scale=float(s), texel_size_world=float(1.0 / (s * N)), rotation=rotation,
-                      offset=offset, efficiency=eff, texture_size_px=N, gutter_px=g, method=used,
+                      offset=offset, efficiency=eff, texture_size_px=N, gutter_px=g, method=name,
                       time_s=time.perf_counter() - t0, min_gap_px=gap)
 
 
-def _place_unrotated(uvs, faces, N, g, method):
+def _place_unrotated(uvs, faces, N, g):
     """Box packing without any rotation (no calipers, no 90-degree turns): charts are only translated."""
     pad = g / N + _EPS_PAD
     lo = np.array([uv.min(axis=0) for uv in uvs])
     wh = np.array([np.ptp(uv, axis=0) for uv in uvs])
-    if method == "rectpack":
-        raise InputError("method='rectpack' always allows 90-degree turns; use rotate=True or method='maxrects'")
     s, payload = _pack_boxes(wh, pad, _own_packers(wh, allow_turn=False))
     if s is None:
         raise InputError(f"gutter_px={g} is too large for {len(uvs)} charts in a {N}-texel atlas: the gutters "

@@ -19,7 +19,9 @@ import numpy as np
 from uvbake.errors import ChartError, InputError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
 from uvbake.flatten.solve import parameterize_charts
+from uvbake.mesh.arrays import rigid_align
 from uvbake.mesh.charts import Chart, check_chart, split_charts
+from uvbake.mesh.cut import seam_length
 from uvbake.mesh.topology import face_adjacency
 
 BAKE_MODES = (None, "checker", "vertex-colors")
@@ -277,7 +279,7 @@ def _disk_charts(V, F, labels, *, auto_cut):
         parts = _subcharts(c, sub)
         for p in parts:
             check_chart(p.V, p.F, name=p.name)
-        cuts.append(dict(chart=c.name, parts=len(parts), seam_length=_seam_length(c, sub)))
+        cuts.append(dict(chart=c.name, parts=len(parts), seam_length=seam_length(c.V, c.F, sub)))
         out.extend(parts)
     for i, c in enumerate(out):
         c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
@@ -291,13 +293,6 @@ def _subcharts(chart, sub_labels, *, with_local=False):
     out = [Chart(p.V, p.F, chart.vertex_map[p.vertex_map], chart.face_index[p.face_index], chart.label,
                  f"{chart.name}.{k}") for k, p in enumerate(parts)]
     return (out, [p.vertex_map for p in parts]) if with_local else out
-
-
-def _seam_length(chart, sub_labels):
-    """3D length of the edges whose two faces got different labels."""
-    fi, fj, e = face_adjacency(chart.F, len(chart.V))
-    e = e[np.asarray(sub_labels)[fi] != np.asarray(sub_labels)[fj]]
-    return float(np.linalg.norm(chart.V[e[:, 0]] - chart.V[e[:, 1]], axis=1).sum())
 
 
 def _invalid_faces(chart, result):
@@ -343,7 +338,7 @@ def _split_until_valid(charts, results, options, *, max_splits, workers, note):
                 starts.append(uv if np.all(_dets(p, uv) > 0) else None)
             splits.append(dict(chart=c.name, faces=int(len(c.F)), flipped=int(len(rep.flipped)),
                                overlapping_pairs=int(len(rep.overlap_pairs)), parts=len(parts),
-                               seam_length=_seam_length(c, sub)))
+                               seam_length=seam_length(c.V, c.F, sub)))
             parents.append(i)
             new_charts.append(parts)
             if len(splits) >= max_splits:
@@ -442,12 +437,7 @@ def _aligned_union_start(union, ci, uvi, cj, uvj):
     """Start map of the union of two charts: chart j's map moved rigidly (2D Kabsch, no reflection)
     onto chart i's at their shared vertices, shared vertices averaged."""
     shared, ii, jj = np.intersect1d(ci.vertex_map, cj.vertex_map, return_indices=True)
-    a, b = uvi[ii], uvj[jj]
-    ca, cb = a.mean(axis=0), b.mean(axis=0)
-    U, _, Wt = np.linalg.svd((b - cb).T @ (a - ca))
-    d = np.sign(np.linalg.det(U @ Wt)) or 1.0
-    Rm = U @ np.diag([1.0, d]) @ Wt
-    uvj_aligned = (uvj - cb) @ Rm + ca
+    _, _, uvj_aligned = rigid_align(uvj[jj], uvi[ii], uvj)
     pos = np.searchsorted(union.vertex_map, ci.vertex_map)
     start = np.zeros((len(union.vertex_map), 2))
     count = np.zeros(len(union.vertex_map))

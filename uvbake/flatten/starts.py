@@ -11,6 +11,7 @@ import scipy.sparse as sp
 
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy
+from uvbake.mesh.arrays import triangle_areas
 from uvbake.mesh.topology import topology
 
 INITS = ("lscm", "tutte", "random")
@@ -41,7 +42,7 @@ def lscm(V, F, *, pins=None):
     uv0[q, 0] = np.linalg.norm(V[q] - V[p])
     fixed = np.zeros(2 * len(V), bool)
     fixed[[2 * p, 2 * p + 1, 2 * q, 2 * q + 1]] = True
-    _, area = _areas(V, F)
+    area = triangle_areas(V, F)
     E = DistortionEnergy(V, F, alpha=0.0, weights=area, fixed=fixed)
     _, g, H = E.evaluate(uv0)
     x = -_spd_solve(H, g)
@@ -85,7 +86,7 @@ def tutte(V, F):
 def random_map(V, F, *, seed=0):
     """Uniform random UVs in a square of the chart's own area: an invalid, mostly flipped start."""
     V = np.asarray(V, dtype=np.float64)
-    _, area = _areas(V, np.asarray(F, dtype=np.int64))
+    area = triangle_areas(V, np.asarray(F, dtype=np.int64))
     side = np.sqrt(area.sum())
     return np.random.default_rng(seed).uniform(0.0, side, size=(len(V), 2))
 
@@ -99,11 +100,6 @@ def initial_map(V, F, init, *, seed=0):
     if init == "random":
         return random_map(V, F, seed=seed)
     raise InputError(f"init={init!r} is not one of {', '.join(repr(i) for i in INITS)}")
-
-
-def _areas(V, F):
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    return n, 0.5 * np.linalg.norm(n, axis=1)
 
 
 def _cycle_order(nxt, start):

@@ -5,17 +5,10 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 from uvbake.errors import InputError
-
-
-def atomic_write_bytes(path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (see :func:`uvbake.io.atomic_write`)."""
-    from uvbake.io import atomic_write
-
-    with atomic_write(path, "wb") as fh:
-        fh.write(data)
 
 
 @contextlib.contextmanager
@@ -66,7 +59,7 @@ def _default_mode(path: Path) -> int:
 
 
 @contextlib.contextmanager
-def _staged(finals):
+def staged(finals: list[Path]) -> Iterator[list[Path]]:
     """Yield temporary paths beside each final path; rename all into place only if the block succeeds."""
     temps = []
     try:
@@ -86,6 +79,7 @@ def _staged(finals):
                 os.unlink(tmp)
 
 
-def _write_bytes(path: Path, data: bytes) -> None:
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_write`)."""
     with atomic_write(path, "wb") as f:
         f.write(data)

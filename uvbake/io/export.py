@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from uvbake.errors import InputError
-from uvbake.io.atomic import _staged, _write_bytes
+from uvbake.io.atomic import atomic_write_bytes, staged
 from uvbake.io.gltf import _load_glb, glb_bytes
 from uvbake.io.obj import load_obj_uv, save_obj
 
@@ -89,7 +89,7 @@ def save_png(path, image) -> Path:
         raise InputError(f"{path}: a texture is written as PNG; give a path ending in .png")
     image = _check_image(path, image)
     data = _png_bytes(image)
-    _write_bytes(path, data)
+    atomic_write_bytes(path, data)
     return path
 
 
@@ -183,9 +183,9 @@ def _save_obj(path, V, F, corner_uv, image, vertex_colors, name):
     mtl = (f"# written by uvbake\nnewmtl {name}\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1\n"
            f"map_Kd {png_path.name}\n")
     finals = [png_path, mtl_path, path]
-    with _staged(finals) as (png_tmp, mtl_tmp, obj_tmp):
-        _write_bytes(png_tmp, _png_bytes(image))
-        _write_bytes(mtl_tmp, mtl.encode("utf-8"))
+    with staged(finals) as (png_tmp, mtl_tmp, obj_tmp):
+        atomic_write_bytes(png_tmp, _png_bytes(image))
+        atomic_write_bytes(mtl_tmp, mtl.encode("utf-8"))
         save_obj(obj_tmp, V, F, uv=uv, uv_faces=uv_faces, vertex_colors=vertex_colors,
                  mtllib=mtl_path.name, material=name)
     return [path, mtl_path, png_path]
@@ -197,6 +197,6 @@ def _save_obj(path, V, F, corner_uv, image, vertex_colors, name):
 
 def _save_glb(path, V, F, corner_uv, image, vertex_colors, name):
     data = glb_bytes(V, F, corner_uv, _png_bytes(image), vertex_colors=vertex_colors, name=name)
-    with _staged([path]) as (tmp,):
-        _write_bytes(tmp, data)
+    with staged([path]) as (tmp,):
+        atomic_write_bytes(tmp, data)
     return [path]

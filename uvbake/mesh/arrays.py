@@ -53,3 +53,35 @@ def unit_scale(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, float]:
     edges = V[F[:, [1, 2, 0]]] - V[F]
     unit = float(np.mean(np.linalg.norm(edges, axis=2)))
     return (V - V.mean(axis=0)) / unit, unit
+
+
+def triangle_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Areas (m,) of the triangles F of a 3D mesh V (n,3)."""
+    X = np.asarray(V, dtype=np.float64)[F]
+    return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+
+
+def signed_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Signed areas (m,) of the triangles F of a UV map uv (n,2): positive = counter-clockwise."""
+    U = np.asarray(uv, dtype=np.float64)[F]
+    e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
+    return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def rigid_align(P: np.ndarray, Q: np.ndarray, X: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """2D Kabsch without reflection: the rotation R (2x2, det +1) and translation t minimising
+    sum |R p_i + t - q_i|^2, and X (default P) moved by them.
+
+    Returns
+    -------
+    R : (2,2), t : (2,), moved : X @ R.T + t, computed as (X - mean P) @ R.T + mean Q.
+    """
+    P = np.asarray(P, dtype=np.float64)
+    Q = np.asarray(Q, dtype=np.float64)
+    X = P if X is None else np.asarray(X, dtype=np.float64)
+    cp, cq = P.mean(axis=0), Q.mean(axis=0)
+    U, _, Wt = np.linalg.svd((P - cp).T @ (Q - cq))
+    d = np.sign(np.linalg.det(U @ Wt)) or 1.0          # no reflection
+    Rm = U @ np.diag([1.0, d]) @ Wt                      # acts on row vectors: (x - cp) @ Rm
+    return Rm.T, cq - cp @ Rm, (X - cp) @ Rm + cq

@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from uvbake.errors import ChartError, InputError
-from uvbake.mesh.arrays import _list, check_arrays
+from uvbake.mesh.arrays import _list, check_arrays, triangle_areas
 from uvbake.mesh.topology import face_adjacency, topology
 
 __all__ = ["bisect", "split_where", "cut_to_disks", "seam_length"]
@@ -70,11 +70,6 @@ def _corner_fans(F, n, i, j):
 
 def _edge_lengths(V, ea, eb):
     return np.linalg.norm(V[ea] - V[eb], axis=1)
-
-
-def _areas(V, F):
-    X = V[F]
-    return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
 
 
 def seam_length(V, F, labels):
@@ -280,7 +275,7 @@ def _prepare(V, F, where):
 
 def _mass(V, F, weights, where):
     if weights is None:
-        mass = _areas(V, F)
+        mass = triangle_areas(V, F)
         if not mass.sum() > 0:
             mass = np.ones(len(F))
         return np.maximum(mass, 1e-12 * mass.max())
