@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from uvbake.analysis.metrics import chart_distortion, distortion_summary
 from uvbake.errors import ChartError, InputError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
 from uvbake.flatten.solve import parameterize_charts
@@ -450,33 +451,12 @@ def _aligned_union_start(union, ci, uvi, cj, uvj):
 
 
 def _distortion(chart, result):
-    """Area-weighted angle distortion (sigma1/sigma2) and area distortion (|log sigma1 sigma2|)."""
-    from uvbake.flatten.energy import jacobians, triangle_frames
-
-    _, Q, area = triangle_frames(chart.V, chart.F)
-    s = np.linalg.svd(jacobians(Q, chart.F, result.uv), compute_uv=False)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        angle = s[:, 0] / s[:, 1]
-        logarea = np.abs(np.log(s[:, 0] * s[:, 1]))
-    w = area / area.sum()
-    finite = np.isfinite(angle) & np.isfinite(logarea)
-    return dict(angle_distortion_mean=float(np.sum(w[finite] * angle[finite])),
-                angle_distortion_max=float(np.max(angle[finite])) if finite.any() else float("inf"),
-                area_distortion_mean=float(np.sum(w[finite] * logarea[finite])),
-                area_3d=float(area.sum()))
+    return chart_distortion(chart.V, chart.F, result.uv)
 
 
 def _distortion_summary(charts, results):
-    d = [_distortion(c, r) for c, r in zip(charts, results)]
-    total = sum(x["area_3d"] for x in d) or 1.0
-    return dict(
-        charts=len(charts),
-        flipped=int(sum(r.n_flipped for r in results)),
-        energy=float(sum(r.energy for r in results)),
-        angle_distortion_mean=float(sum(x["angle_distortion_mean"] * x["area_3d"] for x in d) / total),
-        angle_distortion_max=float(max(x["angle_distortion_max"] for x in d)),
-        area_distortion_mean=float(sum(x["area_distortion_mean"] * x["area_3d"] for x in d) / total),
-    )
+    return distortion_summary([_distortion(c, r) for c, r in zip(charts, results)],
+                              flipped=sum(r.n_flipped for r in results), energy=sum(r.energy for r in results))
 
 
 def _pack_summary(packed):

@@ -61,9 +61,11 @@ def triangle_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
 
 
-def signed_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Signed areas (m,) of the triangles F of a UV map uv (n,2): positive = counter-clockwise."""
-    U = np.asarray(uv, dtype=np.float64)[F]
+def signed_areas(uv: np.ndarray, F: np.ndarray | None = None) -> np.ndarray:
+    """Signed areas (m,) of the triangles F of a UV map uv (n,2), or of per-corner UVs (m,3,2) when F is
+    None: positive = counter-clockwise."""
+    U = np.asarray(uv, dtype=np.float64)
+    U = U if F is None else U[F]
     e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
     return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
 

@@ -1,0 +1,255 @@
+"""The one definition of every map metric: distortion, flips, charts, seams, packing (vectorised numpy).
+
+Used by the pipeline's report (:mod:`uvbake.atlas.pipeline`), the benchmarks (bench/metrics.py
+re-exports this module) and the tests.
+
+Every metric takes the input surface ``V (n,3)``, ``F (m,3)`` and the map as per-corner UVs
+``(m,3,2)`` (the layout Open3D's ``texture_uvs`` uses), so that per-vertex maps (uvbake, libigl) and
+per-corner atlases with split vertices (xatlas, UVAtlas) are measured the same way. Per-vertex UVs
+``(n,2)`` are accepted too and turned into corners with :func:`corners`.
+
+Definitions (the pipeline's JSON report and the README's tables):
+
+- **Jacobian**: for each triangle, J (2x2) maps the triangle's isometric 2D frame
+  (:func:`uvbake.flatten.energy.triangle_frames`) to its UV triangle. sigma1 >= sigma2 >= 0 are its singular values;
+  ``sign(det J)`` is the triangle's UV orientation. A chart mirrored as a whole has det < 0 everywhere
+  and the same singular values, so mirroring costs nothing.
+- **Angle distortion** of a triangle: sigma1 / sigma2 (1 for a similarity; inf for a collapsed one).
+  Reported as its area-weighted mean and its max over triangles (area = 3D area).
+- **Area distortion**: ``sum_t a_t |log(s^2 sigma1 sigma2)| / sum_t a_t`` (a_t the 3D area). uvbake's own
+  maps are at the surface's scale, so its report uses s = 1 (``area_scale="none"``); for peers'
+  normalised atlases s is the best global scale, ``min_s`` of the same sum
+  i.e. the area-weighted mean absolute log area ratio after the best *global* scale s (one scale for
+  the whole atlas, so relative sizes of charts count). The exact minimiser of this L1 objective is
+  ``log s^2 = -weighted median of log(sigma1 sigma2)``; that is what ``area_scale="median"`` (the
+  default) uses. ``area_scale="mean"`` uses the L2 minimiser (weighted mean of the log), which can only
+  give a larger value. Collapsed triangles (zero UV area, sigma2 = 0) and degenerate 3D triangles are
+  left out of all distortion numbers (the means are over the others, weighted by their 3D area) and
+  counted separately (``n_collapsed``); collapsed ones are also flipped in the sense below.
+- **Charts**: the connected components of faces joined through *uncut* edges. An interior edge of
+  (V, F) is uncut when its two faces give both of its endpoints bit-identical UVs.
+- **Flipped**: triangles whose signed UV area is opposite in sign to their chart's total signed UV area,
+  or zero (the convention of ``uvbake.validate``).
+- **Seam length**: total 3D length of the *cut* interior edges of (V, F), i.e. interior edges whose two
+  faces disagree on the UV of either endpoint. Boundary edges of the input are not counted (every
+  method has them); for a labelled scene the edges between labelled charts are seams.
+- **Packing efficiency**: total |UV area| of all triangles / area of the atlas rectangle ([0,1]^2 for
+  normalised atlases); only meaningful for methods that pack, and only when nothing overlaps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from uvbake.flatten.energy import triangle_frames
+from uvbake.mesh.arrays import signed_areas
+
+
+def corners(uv, F):
+    """Per-corner UVs (m,3,2) from per-vertex ``uv (n,2)`` or pass-through of per-corner ones."""
+    uv = np.asarray(uv, dtype=np.float64)
+    if uv.ndim == 3:
+        if uv.shape[1:] != (3, 2):
+            raise ValueError(f"per-corner UVs must be (m,3,2), got {uv.shape}")
+        return uv
+    F = np.asarray(F, dtype=np.int64)
+    return uv[F]
+
+
+def singular_values(V, F, uv):
+    """Per-triangle Jacobian singular values and UV orientation.
+
+    Returns
+    -------
+    s1, s2 : (m,) float arrays, s1 >= s2 >= 0 (in UV units per 3D unit; NaN for degenerate 3D triangles)
+    det : (m,) float array, det J (negative: triangle mirrored in UV)
+    area3d : (m,) float array, 3D triangle areas
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    _, Q, area = triangle_frames(V, F)
+    J = np.einsum("mkc,mkj->mcj", corners(uv, F), Q)     # as uvbake.flatten.energy.jacobians
+    s = np.linalg.svd(J, compute_uv=False) if len(J) else np.zeros((0, 2))
+    det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+    return s[:, 0], s[:, 1], det, area
+
+
+def weighted_median(x, w):
+    """Weighted median (lower one when the cumulative weight hits exactly one half)."""
+    x = np.asarray(x, dtype=np.float64)
+    w = np.asarray(w, dtype=np.float64)
+    order = np.argsort(x)
+    cw = np.cumsum(w[order])
+    k = int(np.searchsorted(cw, 0.5 * cw[-1]))
+    return float(x[order][min(k, len(x) - 1)])
+
+
+def _mean(w, x, ok):
+    """Area-weighted mean of x over the triangles ``ok`` (w: weights normalised over all triangles)."""
+    if ok.all():
+        return float(np.sum(w * x))
+    return float(np.sum(w[ok] * x[ok]) / np.sum(w[ok]))
+
+
+def distortion(V, F, uv, *, area_scale="median"):
+    """Angle and area distortion of a map (see the module docstring for the definitions).
+
+    Parameters
+    ----------
+    area_scale : {"median", "mean", "none"}
+        The global scale s of the area distortion: L1-optimal, L2-optimal, or 1 (maps at true scale).
+
+    Returns
+    -------
+    dict with ``angle_mean``, ``angle_max``, ``area``, ``scale`` (the global scale s applied to the
+    UVs), ``n_collapsed`` (triangles with sigma2 == 0: zero UV area) and ``area_3d``. Collapsed and
+    degenerate triangles are left out of the three distortion numbers.
+    """
+    if area_scale not in ("median", "mean", "none"):
+        raise ValueError(f"area_scale={area_scale!r}: use 'median' (L1-optimal), 'mean' (L2-optimal) or "
+                         "'none' (s = 1)")
+    s1, s2, _, area = singular_values(V, F, uv)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = s1 / s2
+        logdet = np.log(s1 * s2)
+    ok = np.isfinite(ratio) & np.isfinite(logdet)
+    n_collapsed = int(np.count_nonzero((area > 0) & ~(s2 > 0)))
+    if not ok.any():
+        return dict(angle_mean=float("inf"), angle_max=float("inf"), area=float("inf"), scale=float("nan"),
+                    n_collapsed=n_collapsed, area_3d=float(area.sum()))
+    w = area / area.sum()
+    if area_scale == "none":
+        shift = 0.0
+    elif area_scale == "median":
+        shift = weighted_median(logdet[ok], w[ok])
+    else:
+        shift = float(np.sum(w[ok] * logdet[ok]) / np.sum(w[ok]))
+    return dict(angle_mean=_mean(w, ratio, ok), angle_max=float(np.max(ratio[ok])),
+                area=_mean(w, np.abs(logdet - shift), ok), scale=float(np.exp(-0.5 * shift)),
+                n_collapsed=n_collapsed, area_3d=float(area.sum()))
+
+
+def chart_distortion(V, F, uv):
+    """The pipeline report's distortion of one chart at true scale (``area_scale="none"``)."""
+    d = distortion(V, F, uv, area_scale="none")
+    return dict(angle_distortion_mean=d["angle_mean"], angle_distortion_max=d["angle_max"],
+                area_distortion_mean=d["area"], area_3d=d["area_3d"])
+
+
+def distortion_summary(per_chart, flipped, energy):
+    """The report's whole-mesh summary: chart distortions combined, weighted by their 3D area."""
+    total = sum(x["area_3d"] for x in per_chart) or 1.0
+    return dict(
+        charts=len(per_chart),
+        flipped=int(flipped),
+        energy=float(energy),
+        angle_distortion_mean=float(sum(x["angle_distortion_mean"] * x["area_3d"] for x in per_chart) / total),
+        angle_distortion_max=float(max(x["angle_distortion_max"] for x in per_chart)),
+        area_distortion_mean=float(sum(x["area_distortion_mean"] * x["area_3d"] for x in per_chart) / total),
+    )
+
+
+def _interior_edges(F):
+    """Interior edges of (V, F): face/corner of both sides.
+
+    Returns (f0, k0, f1, k1): edge from corner k0 to corner (k0+1)%3 of face f0 is shared with face f1,
+    where it runs from corner k1 to (k1+1)%3 (opposite direction in a consistently oriented mesh,
+    same direction in an inconsistent one; both are handled by matching vertex ids).
+    """
+    F = np.asarray(F, dtype=np.int64)
+    m = len(F)
+    a = F.ravel()
+    b = F[:, [1, 2, 0]].ravel()
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    n = int(F.max()) + 1 if m else 0
+    key = lo * n + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    same = np.flatnonzero(ks[1:] == ks[:-1])
+    h0, h1 = order[same], order[same + 1]                 # half-edge ids f*3 + k
+    return h0 // 3, h0 % 3, h1 // 3, h1 % 3
+
+
+def cut_edges(F, uv):
+    """Interior edges whose two faces disagree on the UV of an endpoint.
+
+    Returns
+    -------
+    cut : (e,) bool, uv-cut flag per interior edge
+    f0, f1 : (e,) face pairs of the interior edges
+    verts : (e,2) the edge's vertex ids
+    """
+    F = np.asarray(F, dtype=np.int64)
+    C = corners(uv, F)
+    f0, k0, f1, k1 = _interior_edges(F)
+    a0, b0 = F[f0, k0], F[f0, (k0 + 1) % 3]
+    a1 = F[f1, k1]
+    # UV at each endpoint as seen from face f0 and face f1
+    ua0, ub0 = C[f0, k0], C[f0, (k0 + 1) % 3]
+    ua1, ub1 = C[f1, k1], C[f1, (k1 + 1) % 3]
+    same_dir = a1 == a0                                   # f1 runs the edge the same way (inconsistent)
+    ua1, ub1 = np.where(same_dir[:, None], ua1, ub1), np.where(same_dir[:, None], ub1, ua1)
+    cut = np.any(ua0 != ua1, axis=1) | np.any(ub0 != ub1, axis=1)
+    return cut, f0, f1, np.stack([a0, b0], axis=1)
+
+
+def uv_seam_length(V, F, uv):
+    """Total 3D length of cut interior edges (see the module docstring)."""
+    V = np.asarray(V, dtype=np.float64)
+    cut, _, _, verts = cut_edges(F, uv)
+    e = verts[cut]
+    return float(np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1).sum())
+
+
+def chart_ids(F, uv):
+    """Chart of every face: components of faces joined through uncut interior edges."""
+    F = np.asarray(F, dtype=np.int64)
+    m = len(F)
+    cut, f0, f1, _ = cut_edges(F, uv)
+    keep = ~cut
+    g = sp.coo_matrix((np.ones(int(keep.sum())), (f0[keep], f1[keep])), shape=(m, m))
+    _, labels = connected_components(g, directed=False)
+    return labels.astype(np.int64)
+
+
+def flipped(F, uv, charts=None):
+    """Faces flipped against their chart's orientation (sign of the chart's total signed area), or zero.
+
+    ``charts`` defaults to :func:`chart_ids`. A chart mirrored as a whole has no flipped face.
+    """
+    A = signed_areas(corners(uv, F))
+    if charts is None:
+        charts = chart_ids(F, uv)
+    total = np.bincount(charts, weights=A)
+    orient = np.where(total[charts] >= 0, 1.0, -1.0)
+    return np.flatnonzero(A * orient <= 0)
+
+
+def packing_efficiency(uv, F=None, *, width=1.0, height=1.0):
+    """Total |UV area| / (width * height): atlas coverage (assumes no overlaps)."""
+    return float(np.abs(signed_areas(corners(uv, F))).sum() / (width * height))
+
+
+@dataclass
+class MapMetrics:
+    angle_mean: float
+    angle_max: float
+    area: float
+    n_collapsed: int
+    n_charts: int
+    n_flipped: int
+    seam_length: float
+
+
+def measure(V, F, uv, *, area_scale="median"):
+    """All the per-map metrics above in one record (flips per chart orientation, charts from cuts)."""
+    C = corners(uv, F)
+    d = distortion(V, F, C, area_scale=area_scale)
+    ch = chart_ids(F, C)
+    return MapMetrics(angle_mean=d["angle_mean"], angle_max=d["angle_max"], area=d["area"],
+                      n_collapsed=d["n_collapsed"], n_charts=int(ch.max()) + 1 if len(ch) else 0,
+                      n_flipped=int(len(flipped(F, C, ch))), seam_length=uv_seam_length(V, F, C))
