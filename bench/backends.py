@@ -46,8 +46,8 @@ def strict_pd_patch():
 
 def solve_mesh(path, alpha, backend, *, tol, max_iter, budget_s, storage=None):
     import uvbake
-    from uvbake.analysis.crosscheck import is_local_minimum
     import uvbake.flatten.solvers.lbfgs as lb
+    from uvbake.analysis.crosscheck import is_local_minimum
 
     if storage is not None:
         lb.VECTOR_STORAGE = storage

@@ -26,10 +26,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import uvbake  # noqa: E402
-from uvbake.errors import InputError  # noqa: E402
 from uvbake.atlas.distance import min_chart_distance  # noqa: E402
+from uvbake.atlas.pack import pack_charts  # noqa: E402
+from uvbake.errors import InputError  # noqa: E402
+
 from packers import rectpack_placer, xatlas_placer  # noqa: E402
-from uvbake.atlas.pack import pack_charts
 
 SHARED = REPO.parent / "shared" / "meshes"
 
@@ -46,8 +47,8 @@ def scene(path):
 
 def kmeans_pieces(path, k, seed=0):
     """Cut a mesh into about ``k`` charts by k-means (Lloyd, 20 rounds) on face centroids."""
-    from uvbake.mesh.charts import check_chart
     from uvbake.errors import ChartError
+    from uvbake.mesh.charts import check_chart
 
     m = uvbake.load_mesh(path)
     C = m.V[m.F].mean(axis=1)
@@ -98,7 +99,8 @@ def available_methods():
 def check(res, uvs, faces):
     """Shapes kept, in the unit square, gutter kept; returns the measured gap in texels."""
     for uv, q in zip(uvs, res.uv):
-        i, j = np.triu_indices(len(uv), 1) if len(uv) < 300 else np.random.default_rng(0).integers(0, len(uv), (2, 2000))
+        rng = np.random.default_rng(0)
+        i, j = np.triu_indices(len(uv), 1) if len(uv) < 300 else rng.integers(0, len(uv), (2, 2000))
         d0 = np.linalg.norm(uv[i] - uv[j], axis=1) * res.scale
         d1 = np.linalg.norm(q[i] - q[j], axis=1)
         assert np.allclose(d0, d1, rtol=1e-9, atol=1e-12), "shape changed"
@@ -129,7 +131,8 @@ def main(argv=None):
                     for _ in range(args.repeat):
                         t0 = time.perf_counter()
                         try:
-                            r = pack_charts(uvs, faces, texture_size_px=N, gutter_px=g, method=PLACERS.get(method, method))
+                            r = pack_charts(uvs, faces, texture_size_px=N, gutter_px=g,
+                                            method=PLACERS.get(method, method))
                         except (InputError, RuntimeError) as e:   # a peer failing is reported, not fatal
                             r = e
                             break

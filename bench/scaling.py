@@ -98,6 +98,7 @@ def child(method, k, alpha, max_iter):
     elif method == "slim":
         import igl
         from threadpoolctl import threadpool_limits  # noqa: F401  (igl uses Eigen's own threads)
+
         from uvbake.flatten.starts import lscm
 
         uv0 = lscm(V, F)
@@ -111,6 +112,7 @@ def child(method, k, alpha, max_iter):
         rec["cpu_s"] = time.process_time() - c0
     elif method == "lscm":
         import igl
+
         from uvbake.flatten.starts import farthest_boundary_pair
 
         p, q = farthest_boundary_pair(V, F)
@@ -221,7 +223,8 @@ def main(argv=None):
                      f"{g('lm', k, 'per_iter_s', '.4f')} | {g('lm', k, 'per_iter_cpu_s', '.4f')} | "
                      f"{g('lm', k, 'time_s', '.2f')} | {g('lm', k, 'cpu_s', '.2f')} | "
                      f"{g('lm', k, 'peak_mb', '.0f')} | {'yes' if lm.get('converged') else 'no'} | "
-                     f"{g('lm', k, 'flipped', 'd')} | {g('slim', k, 'time_s', '.2f')} | {g('slim', k, 'cpu_s', '.2f')} | "
+                     f"{g('lm', k, 'flipped', 'd')} | {g('slim', k, 'time_s', '.2f')} | "
+                     f"{g('slim', k, 'cpu_s', '.2f')} | "
                      f"{g('slim', k, 'peak_mb', '.0f')} | {g('lscm', k, 'time_s', '.3f')} | "
                      f"{g('lscm', k, 'peak_mb', '.0f')} |")
     lines += ["", "Fitted exponents p in time ~ n^p (n = vertices; least squares in log-log):", "",

@@ -12,7 +12,6 @@ import platform
 import sys
 from pathlib import Path
 
-
 HERE = Path(__file__).resolve().parent
 MESHES = HERE.parent.parent / "shared" / "meshes"
 
@@ -27,8 +26,8 @@ def main():
     if not MESHES.is_dir():
         sys.exit(f"bench/solver.py: {MESHES} not found; the research meshes live beside the checkout")
     import uvbake
-    from uvbake.io.load import load_mesh
     from uvbake.flatten.solvers.linalg import cholmod_available
+    from uvbake.io.load import load_mesh
 
     print(f"# uvbake LM solver, {platform.processor() or platform.machine()}, "
           f"linear solver {'CHOLMOD' if cholmod_available() else 'SuperLU'}\n")

@@ -5,8 +5,7 @@ import pytest
 
 pytest.importorskip("open3d")
 
-from uvbake.atlas.bake import (DEFAULT_DILATE_PX, bake_checker, bake_vertex_colors, dilate,  # noqa: E402
-                         dilate_px_for_mips)
+from uvbake.atlas.bake import DEFAULT_DILATE_PX, bake_checker, bake_vertex_colors, dilate, dilate_px_for_mips  # noqa: E402
 from uvbake.errors import InputError  # noqa: E402
 
 SENTINEL = (255, 0, 255)  # magenta: any mix of it into the grey checker makes R != G

@@ -6,8 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_pack import chart_set, min_gap, signed_areas
 from uvbake.atlas.pack import pack_charts
+
+from test_pack import chart_set, min_gap, signed_areas
 
 _PATH = Path(__file__).resolve().parents[1] / "bench" / "packers.py"
 _spec = importlib.util.spec_from_file_location("bench_packers", _PATH)

@@ -6,6 +6,7 @@ import pytest
 import uvbake
 from uvbake.mesh.charts import check_chart, split_charts
 from uvbake.mesh.topology import nonmanifold_vertices, topology
+
 from meshgen import bumpy_disk, grid, torus
 
 

@@ -10,6 +10,7 @@ import pytest
 
 from uvbake.cli import main
 from uvbake.io.obj import load_obj_uv
+
 from conftest import SAMPLE_SCENES
 
 

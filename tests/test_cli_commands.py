@@ -4,10 +4,11 @@ import shutil
 
 import pytest
 
-from conftest import REPO
 from uvbake.cli import main
 from uvbake.cli.common import EXIT_BAD_INPUT, EXIT_BUG, EXIT_FAILED, EXIT_INTERRUPTED, exit_code
 from uvbake.errors import ChartError, InputError, SolverError
+
+from conftest import REPO
 
 
 def test_unwrap_names_the_command_so_a_mesh_path_may_be_check(tmp_path, monkeypatch, capsys):

@@ -5,13 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from conftest import SAMPLE_SCENES, shared_mesh
-from uvbake.mesh.charts import split_charts
 from uvbake.analysis.crosscheck import CrossCheckError, cross_check, cross_check_charts, uv_diameter
-from uvbake.flatten.energy import DistortionEnergy
-from uvbake.mesh.arrays import rigid_align
 from uvbake.errors import SolverError
+from uvbake.flatten.energy import DistortionEnergy
 from uvbake.io.load import load_mesh
+from uvbake.mesh.arrays import rigid_align
+from uvbake.mesh.charts import split_charts
+
+from conftest import SAMPLE_SCENES, shared_mesh
 
 pytest.importorskip("nlopt")
 

@@ -5,6 +5,7 @@ import pytest
 import scipy.sparse as sp
 
 from uvbake.flatten.energy import DistortionEnergy, jacobians, optimal_scale, triangle_frames
+
 from meshgen import bumpy_disk, plane
 
 

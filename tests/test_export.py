@@ -12,8 +12,8 @@ import pytest
 
 import uvbake.io.export as export_mod
 from uvbake.errors import InputError
-from uvbake.io.export import load_textured_uv, save_textured
 from uvbake.io.corners import split_corners
+from uvbake.io.export import load_textured_uv, save_textured
 
 GLTF_VALIDATOR_VERSION = "2.0.0-dev.3.10"
 NODE_PREFIX_DEFAULT = Path.home() / ".cache" / "uvbake" / "node"
@@ -298,6 +298,7 @@ def test_pil_image_and_rgba(tmp_path):
 
 def test_save_png(tmp_path, monkeypatch):
     from PIL import Image
+
     from uvbake.io.export import save_png
     _, _, _, image, _ = seam_mesh()
     path = save_png(tmp_path / "t.png", image)

@@ -9,11 +9,10 @@ import pytest
 import uvbake.io as uio
 import uvbake.io.obj as uobj
 from uvbake.errors import InputError
-from uvbake.io.meshdata import MeshData
-from uvbake.io.load import load_mesh
 from uvbake.io.atomic import atomic_write
+from uvbake.io.load import load_mesh
+from uvbake.io.meshdata import MeshData
 from uvbake.io.obj import load_obj_uv, save_obj
-
 
 # ------------------------------------------------------------------------------------------------
 # fixtures

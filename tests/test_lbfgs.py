@@ -5,9 +5,9 @@ import pytest
 
 import uvbake
 from uvbake.flatten.energy import DistortionEnergy, optimal_scale
-from uvbake.flatten.starts import initial_map
 from uvbake.flatten.solvers.lbfgs import lbfgs
 from uvbake.flatten.solvers.lm import levenberg_marquardt
+from uvbake.flatten.starts import initial_map
 
 pytest.importorskip("nlopt")
 

@@ -8,9 +8,9 @@ separate test for crossing edges, which is exact for planar triangle sets.
 import numpy as np
 import pytest
 
-from uvbake.errors import InputError
-from uvbake.atlas.pack import corner_uvs, pack_charts
 from uvbake.atlas.distance import min_chart_distance
+from uvbake.atlas.pack import corner_uvs, pack_charts
+from uvbake.errors import InputError
 
 # ------------------------------------------------------------------------------------------ helpers
 

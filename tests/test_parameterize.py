@@ -7,6 +7,7 @@ import uvbake
 from uvbake import parameterize, parameterize_charts
 from uvbake.flatten.energy import DistortionEnergy, jacobians, triangle_frames
 from uvbake.flatten.starts import lscm, random_map, tutte
+
 from conftest import shared_mesh
 from meshgen import bumpy_disk, cone, cut_cylinder, plane
 

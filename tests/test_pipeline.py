@@ -7,6 +7,7 @@ import pytest
 
 import uvbake
 from uvbake.atlas.pipeline import unwrap
+
 from meshgen import bumpy_disk, grid
 
 

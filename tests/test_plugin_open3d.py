@@ -3,7 +3,8 @@
 
 import numpy as np
 import pytest
-from conftest import run_readme_example, SAMPLE_SCENES
+
+from conftest import SAMPLE_SCENES, run_readme_example
 
 o3d = pytest.importorskip("open3d")
 import uvbake_open3d  # noqa: E402

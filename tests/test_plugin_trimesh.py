@@ -3,7 +3,8 @@
 
 import numpy as np
 import pytest
-from conftest import run_readme_example, SAMPLE_SCENES
+
+from conftest import SAMPLE_SCENES, run_readme_example
 
 trimesh = pytest.importorskip("trimesh")
 import uvbake_trimesh  # noqa: E402

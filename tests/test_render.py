@@ -11,10 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import SAMPLE_SCENES
 
 from pytest_uvbake.compare import as_image, compare_images
 from pytest_uvbake.plugin import DEFAULT_MAD_TOL, DEFAULT_SSIM_MIN
+
+from conftest import SAMPLE_SCENES
 
 SIZE = 256          # texture side of the goldens
 VIEW = 160          # side of each preview view

@@ -5,11 +5,12 @@ import json
 import numpy as np
 import pytest
 
-from meshgen import bumpy_disk, grid
-from uvbake.mesh.charts import check_chart, split_charts
-from uvbake.mesh.topology import nonmanifold_vertices, topology
 from uvbake.errors import InputError
+from uvbake.mesh.charts import check_chart, split_charts
 from uvbake.mesh.repair import repair
+from uvbake.mesh.topology import nonmanifold_vertices, topology
+
+from meshgen import bumpy_disk, grid
 
 
 def _edge_counts(F):

@@ -5,13 +5,14 @@ import time
 import numpy as np
 import pytest
 
-from conftest import shared_mesh
-from meshgen import bumpy_disk, grid, torus
-from uvbake.mesh.charts import check_chart, split_charts
-from uvbake.mesh.topology import topology
 from uvbake.errors import ChartError, InputError
 from uvbake.io.load import load_mesh
+from uvbake.mesh.charts import check_chart, split_charts
 from uvbake.mesh.cut import bisect, cut_to_disks, seam_length, split_where
+from uvbake.mesh.topology import topology
+
+from conftest import shared_mesh
+from meshgen import bumpy_disk, grid, torus
 
 
 def sphere(subdiv=3):

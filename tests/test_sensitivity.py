@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 import uvbake
-from conftest import SAMPLE_SCENES
-from uvbake.errors import InputError
-from uvbake.io.load import load_mesh
 from uvbake.analysis.sensitivity import finite_difference, parse_alphas, relative_sensitivity, sweep
 from uvbake.cli.sweep import main
+from uvbake.errors import InputError
+from uvbake.io.load import load_mesh
+
+from conftest import SAMPLE_SCENES
 
 
 def cylinder_patch(nu=14, nv=8, angle=1.6):

@@ -10,12 +10,13 @@ import pytest
 import scipy.sparse as sp
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from meshgen import bumpy_disk, cone, plane
 from uvbake.errors import InputError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
 from uvbake.flatten.solve import limit_blas_threads, parameterize, parameterize_charts, solve_chart
 from uvbake.flatten.solvers.linalg import cholmod_available, is_positive_definite
 from uvbake.flatten.solvers.result import MESSAGES, Status
+
+from meshgen import bumpy_disk, cone, plane
 
 
 def _charts():

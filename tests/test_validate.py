@@ -10,8 +10,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from uvbake.validate.report import FLIPPED_RGB, OVERLAP_RGB
 from uvbake.validate.core import validate
+from uvbake.validate.report import FLIPPED_RGB, OVERLAP_RGB
 
 # --------------------------------------------------------------------------------------------------
 # fixtures and the oracle

@@ -16,5 +16,9 @@ class ChartError(InputError):
     """A chart is not a valid disk-with-holes; the message names the chart and the fix."""
 
 
+class NotDiskError(ChartError):
+    """A chart is closed or has handles: valid surface, but it must be cut into disks to flatten."""
+
+
 class SolverError(UvbakeError, RuntimeError):
     """A solver failed on valid input."""

@@ -51,8 +51,8 @@ def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", r
     """
     import open3d as o3d
 
-    from uvbake.errors import InputError
     from uvbake.atlas.pipeline import unwrap as _unwrap
+    from uvbake.errors import InputError
 
     tensor = isinstance(mesh, o3d.t.geometry.TriangleMesh)
     if not tensor and not isinstance(mesh, o3d.geometry.TriangleMesh):

@@ -49,8 +49,8 @@ def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", r
     """
     import trimesh
 
-    from uvbake.errors import InputError
     from uvbake.atlas.pipeline import unwrap as _unwrap
+    from uvbake.errors import InputError
 
     if not isinstance(mesh, trimesh.Trimesh):
         raise InputError(f"uvbake_trimesh.unwrap takes a trimesh.Trimesh, got {type(mesh).__name__}; "

@@ -361,7 +361,8 @@ def corner_uvs(pack_result, chart_faces, face_index, n_faces):
             raise InputError(f"chart {i}: face_index has {len(idx)} entries for {len(F)} faces; pass one mesh "
                              f"face index per chart face")
         if len(idx) and (idx.min() < 0 or idx.max() >= n_faces):
-            raise InputError(f"chart {i}: face_index must lie in [0, {n_faces - 1}]; pass indices into the mesh's faces")
+            raise InputError(f"chart {i}: face_index must lie in [0, {n_faces - 1}]; "
+                             "pass indices into the mesh's faces")
         out[idx] = pack_result.uv[i][F]
         np.add.at(seen, idx, 1)
     if np.any(seen != 1):

@@ -17,12 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uvbake.analysis.metrics import chart_distortion, distortion_summary
-from uvbake.errors import ChartError, InputError
+from uvbake.errors import ChartError, InputError, NotDiskError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
 from uvbake.flatten.solve import parameterize_charts
 from uvbake.mesh.arrays import rigid_align
 from uvbake.mesh.charts import Chart, check_chart, split_charts
-from uvbake.mesh.cut import seam_length
+from uvbake.mesh.cut import cut_to_disks, seam_length
 from uvbake.mesh.topology import face_adjacency
 
 BAKE_MODES = (None, "checker", "vertex-colors")
@@ -269,13 +269,9 @@ def _disk_charts(V, F, labels, *, auto_cut):
             check_chart(c.V, c.F, name=c.name)
             out.append(c)
             continue
-        except ChartError as exc:
-            if not auto_cut or not ("closed" in str(exc) or "handle" in str(exc)):
-                if "closed" in str(exc) or "handle" in str(exc):
-                    raise ChartError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
-                raise
-        from uvbake.mesh.cut import cut_to_disks
-
+        except NotDiskError as exc:               # closed or with handles: cut it, if allowed
+            if not auto_cut:
+                raise NotDiskError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
         sub = cut_to_disks(c.V, c.F)
         parts = _subcharts(c, sub)
         for p in parts:
@@ -375,7 +371,6 @@ def _merge_back(V, F, charts, results, options, *, note, budget_s, known_invalid
     Each union starts from the two parts' maps, rigidly aligned on their shared seam vertices, and
     the pass stops after ``budget_s`` seconds.
     """
-    from uvbake.errors import ChartError
 
     deadline = time.perf_counter() + budget_s
     charts, results = list(charts), list(results)

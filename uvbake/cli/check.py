@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from typing import Any
 
 import numpy as np
 
@@ -76,7 +77,7 @@ def load_uv_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(
             f"cannot read {path}: {msg}; pass a valid .obj, .glb, .gltf or .ply mesh"
         ) from None
-    geoms = list(loaded.geometry.values()) if isinstance(loaded, trimesh.Scene) else [loaded]
+    geoms: list[Any] = list(loaded.geometry.values()) if isinstance(loaded, trimesh.Scene) else [loaded]
     uvs, faces, offset, n_tri = [], [], 0, 0
     for g in geoms:
         F = np.asarray(getattr(g, "faces", np.zeros((0, 3))), dtype=np.int64)

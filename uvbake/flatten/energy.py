@@ -100,7 +100,8 @@ class DistortionEnergy:
     def __init__(self, V, F, *, alpha, weights=None, fixed=None):
         alpha = float(alpha)
         if not 0.0 <= alpha <= 1.0 or not np.isfinite(alpha):
-            raise InputError(f"alpha={alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) and 1 (areas only)")
+            raise InputError(f"alpha={alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) "
+                             "and 1 (areas only)")
         self.V = np.asarray(V, dtype=np.float64)
         self.F = np.asarray(F, dtype=np.int64)
         self.alpha = alpha

@@ -76,7 +76,8 @@ def _run_backend(energy: DistortionEnergy, start: np.ndarray, options: SolveOpti
 
 def _chart_arrays(chart: Chart | Sequence[Any], index: int = 0) -> tuple[np.ndarray, np.ndarray, str]:
     if isinstance(chart, Chart) or hasattr(chart, "V"):
-        return chart.V, chart.F, chart.name
+        c: Any = chart
+        return c.V, c.F, c.name
     name = chart[2] if len(chart) > 2 else f"chart {index}"
     return chart[0], chart[1], name
 

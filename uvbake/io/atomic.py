@@ -7,12 +7,13 @@ import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import IO, Any
 
 from uvbake.errors import InputError
 
 
 @contextlib.contextmanager
-def atomic_write(path, mode: str = "w"):
+def atomic_write(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO[Any]]:
     """Open a temporary file beside ``path``; on success it replaces ``path``, on error it is removed.
 
     Parameters
@@ -35,7 +36,7 @@ def atomic_write(path, mode: str = "w"):
         raise InputError(f"{path}: folder {folder} does not exist; create it first")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
     try:
-        kwargs = {"encoding": "utf-8", "newline": "\n"} if mode == "w" else {}
+        kwargs: dict[str, Any] = {"encoding": "utf-8", "newline": "\n"} if mode == "w" else {}
         with os.fdopen(fd, mode, **kwargs) as f:
             yield f
             f.flush()
@@ -61,22 +62,22 @@ def _default_mode(path: Path) -> int:
 @contextlib.contextmanager
 def staged(finals: list[Path]) -> Iterator[list[Path]]:
     """Yield temporary paths beside each final path; rename all into place only if the block succeeds."""
-    temps = []
+    temps: list[Path] = []
     try:
         for final in finals:
-            fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
+            fd, name = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
             os.close(fd)
-            os.unlink(tmp)  # writers create it themselves (atomically)
-            temps.append(Path(tmp))
+            os.unlink(name)  # writers create it themselves (atomically)
+            temps.append(Path(name))
         yield temps
-        for tmp, final in zip(temps, finals):
-            os.chmod(tmp, _default_mode(final))
-        for tmp, final in zip(temps, finals):
-            os.replace(tmp, final)
+        for part, final in zip(temps, finals):
+            os.chmod(part, _default_mode(final))
+        for part, final in zip(temps, finals):
+            os.replace(part, final)
     finally:
-        for tmp in temps:
+        for part in temps:
             with contextlib.suppress(OSError):
-                os.unlink(tmp)
+                os.unlink(part)
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -111,7 +112,7 @@ def _load_path(path: Path) -> MeshData:
 
     import trimesh
 
-    kwargs = {"fix_texture": False} if ext == ".ply" else {}
+    kwargs: dict[str, Any] = {"fix_texture": False} if ext == ".ply" else {}
     try:
         loaded = trimesh.load(name, process=False, **kwargs)
     except Exception as exc:  # trimesh raises anything from KeyError to struct.error

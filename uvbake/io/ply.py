@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 _PLY_TYPES = {
@@ -19,19 +21,20 @@ def read_ply_elements(path) -> dict:
     read a file (binary PLY with mixed polygon sizes) or drops a face property.
     """
     with open(path, "rb") as f:
-        lines = []
+        lines: list[str] = []
         while True:
-            line = f.readline()
-            if not line:
+            raw = f.readline()
+            if not raw:
                 raise ValueError("no end_header line")
-            line = line.decode("ascii", "replace").strip()
+            line = raw.decode("ascii", "replace").strip()
             lines.append(line)
             if line == "end_header":
                 break
         body = f.read()
     if not lines or lines[0] != "ply":
         raise ValueError("does not start with 'ply'")
-    fmt, elements = None, []
+    fmt = None
+    elements: list[tuple[str, int, list[tuple[str, str, str | None]]]] = []
     for line in lines[1:]:
         parts = line.split()
         if parts[:1] == ["format"]:
@@ -54,7 +57,7 @@ def _ply_ascii(body: bytes, elements) -> dict:
     tokens = body.split()
     pos, out = 0, {}
     for name, count, props in elements:
-        columns = {p[0]: [] for p in props}
+        columns: dict[str, list[Any]] = {p[0]: [] for p in props}
         for _ in range(count):
             for prop, dtype, item in props:
                 if item is None:
@@ -71,7 +74,7 @@ def _ply_ascii(body: bytes, elements) -> dict:
 def _ply_binary(body: bytes, elements, endian: str) -> dict:
     pos, out = 0, {}
     for name, count, props in elements:
-        fixed = []  # try one record layout, using the first row's list lengths
+        fixed: list[Any] = []  # try one record layout, using the first row's list lengths
         probe = pos
         for prop, dtype, item in props:
             if item is None:
@@ -89,7 +92,7 @@ def _ply_binary(body: bytes, elements, endian: str) -> dict:
                 out[name] = {p[0]: np.array(data[p[0]]) for p in props}
                 pos += count * layout.itemsize
                 continue
-        columns = {p[0]: [] for p in props}  # rows of different lengths: walk them
+        columns: dict[str, list[Any]] = {p[0]: [] for p in props}  # rows of different lengths: walk them
         for _ in range(count):
             for prop, dtype, item in props:
                 size = np.dtype(dtype).itemsize

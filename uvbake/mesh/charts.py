@@ -13,7 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from uvbake.errors import ChartError, InputError
+from uvbake.errors import ChartError, InputError, NotDiskError
 from uvbake.mesh.arrays import _list, check_arrays
 from uvbake.mesh.topology import face_adjacency, nonmanifold_vertices, topology
 
@@ -90,10 +90,10 @@ def check_chart(V, F, *, name="chart 0"):
         raise ChartError(f"{name}: has {topo.n_components} connected components; pass one component, "
                          "or split it with uvbake.split_charts")
     if topo.n_boundary_loops == 0:
-        raise ChartError(f"{name}: is closed (no boundary), so it cannot be flattened; cut it open along a seam "
+        raise NotDiskError(f"{name}: is closed (no boundary), so it cannot be flattened; cut it open along a seam "
                          "or give it several segment labels")
     if topo.genus != 0:
-        raise ChartError(f"{name}: has {topo.genus} handle(s) (genus {topo.genus}, {topo.n_boundary_loops} boundary "
+        raise NotDiskError(f"{name}: has {topo.genus} handle(s) (genus {topo.genus}, {topo.n_boundary_loops} boundary "
                          "loops), not a disk with holes; cut each handle or split the chart with segment labels")
     return topo
 

@@ -278,10 +278,10 @@ def _topology_filter(corners, vid, sign, twin, dup):
         out = np.zeros(len(i), bool)
         for k in range(3):
             safe_k = safe[va[:, k]]
-            for l in range(3):
-                # shared corner a_k == b_l: safe vertex, or edge a_k -> a_k+1 == b_l -> b_l-1
-                twin_edge = consistent & (va[:, nxt[k]] == vb[:, (l + 2) % 3])
-                out |= (va[:, k] == vb[:, l]) & (safe_k | twin_edge)
+            for c in range(3):
+                # shared corner a_k == b_c: safe vertex, or edge a_k -> a_k+1 == b_c -> b_c-1
+                twin_edge = consistent & (va[:, nxt[k]] == vb[:, (c + 2) % 3])
+                out |= (va[:, k] == vb[:, c]) & (safe_k | twin_edge)
         return out
 
     return disjoint

@@ -154,7 +154,8 @@ def validate(
         covered_px, raster_complete = 0, False
         notes.append(f"raster skipped: the triangles span more than {budgets.MAX_SPAN_ROWS} pixel rows")
     else:
-        pix_keys, pix_of_key, covered_px, raster_complete = _raster_pairs(*spans, rows, cols, m)
+        tri, row, x0, x1 = spans
+        pix_keys, pix_of_key, covered_px, raster_complete = _raster_pairs(tri, row, x0, x1, rows, cols, m)
         if not raster_complete:
             notes.append("raster pairs truncated: too many pixels claimed more than once")
     raster_keys = _sorted_unique(pix_keys)

@@ -108,7 +108,8 @@ def _spans(Xi, Yi, rows, cols, max_rows=None):
     if not out[0]:
         z = np.zeros(0, np.int64)
         return z, z, z, z
-    return tuple(np.concatenate(o) for o in out)
+    tri, row, x0, x1 = (np.concatenate(o) for o in out)
+    return tri, row, x0, x1
 
 
 def _accumulate(row, x0, x1, rows, cols, weight=None):

@@ -131,8 +131,8 @@ class ValidationReport:
     allow_subpixel: bool
     time_s: float
     timings_s: dict
-    _corners: np.ndarray = field(default=None, repr=False, compare=False)
-    _overlap_pix: np.ndarray = field(default=None, repr=False, compare=False)
+    _corners: np.ndarray | None = field(default=None, repr=False, compare=False)
+    _overlap_pix: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def n_flipped(self) -> int:

@@ -219,7 +219,7 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
             detail = f"{type(exc).__name__}{': ' + str(exc) if str(exc) else ''}"
             return Status.NLOPT_FAILURE, f"nlopt failure ({detail})"
 
-    reasons: list[tuple[Status, str]] = []
+    reasons = []                           # (Status, message) of every nlopt run
     n_restart = 0
     while True:
         g_before = st["g"]
