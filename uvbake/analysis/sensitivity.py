@@ -44,8 +44,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uvbake.errors import InputError
+from uvbake.flatten.energy import DistortionEnergy
+from uvbake.flatten.solve import parameterize
 from uvbake.io.atomic import atomic_write_bytes
 from uvbake.mesh.arrays import signed_areas, triangle_areas
+from uvbake.mesh.charts import split_charts
+from uvbake.validate.core import validate
 
 #: F* under this (times the number of triangles) is zero to rounding: S is then undefined (NaN).
 ZERO_ENERGY = 1e-12
@@ -312,17 +316,10 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
     -------
     SweepResult
     """
-    from uvbake import parameterize
-    from uvbake.mesh.charts import split_charts
-
     alphas = check_alphas(alphas)
     charts = split_charts(V, F, labels)
-    notes = []
-    validate = None
-    if overlaps:
-        validate = _validator()
-        if validate is None:
-            notes.append("uvbake's validator is not importable: overlaps not counted")
+    notes: list[str] = []
+    counter = _OverlapCounter(overlaps, notes)
     area3d = [float(np.sum(triangle_areas(c.V, c.F))) for c in charts]
     m_total = int(sum(len(c.F) for c in charts))
     prev = [None] * len(charts)
@@ -335,41 +332,8 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
             uv0 = prev[ci] if (warm_start and prev[ci] is not None) else None
             results.append(parameterize(c.V, c.F, alpha=float(alpha), init=init, backend=backend, tol=tol,
                                         max_iter=max_iter, seed=seed, uv0=uv0, name=c.name))
-        d_area = d_angle = 0.0
-        uv_area = 0.0
-        n_over = 0 if validate is not None else None
-        for c, r in zip(charts, results):
-            from uvbake.flatten.energy import DistortionEnergy
-
-            e = DistortionEnergy(c.V, c.F, alpha=float(alpha))
-            da, dg = e.per_triangle(r.uv)
-            d_area += float(da.sum())
-            d_angle += float(dg.sum())
-            uv_area += float(np.sum(np.abs(signed_areas(r.uv, c.F))))
-            if validate is not None:
-                try:
-                    n_over += int(len(validate(r.uv, c.F).overlap_pairs))
-                except Exception as exc:      # a validator failure must not lose the sweep
-                    notes.append(f"alpha={alpha:g} {c.name}: overlap check failed ({type(exc).__name__}: {exc})")
-                    n_over = None
-                    validate = None
-        hist = _sum_histories([r.history for r in results])
-        rec = AlphaRecord(
-            alpha=float(alpha),
-            energy=float(sum(r.energy for r in results)),
-            energy_area=d_area, energy_angle=d_angle,
-            iterations=int(sum(r.iterations for r in results)),
-            evaluations=int(sum(r.n_evaluations for r in results)),
-            n_flipped=int(sum(r.n_flipped for r in results)),
-            overlaps=n_over,
-            converged=bool(all(r.converged for r in results)),
-            grad_norm=float(max(r.grad_norm for r in results)),
-            uv_area_ratio=uv_area / sum(area3d) if sum(area3d) > 0 else float("nan"),
-            stop_reasons=sorted({r.stop_reason for r in results}),
-            started_from=(f"alpha={prev_alpha:g}" if warm_start and prev_alpha is not None else init),
-            history=hist,
-            time_s=time.perf_counter() - t0,
-        )
+        started = f"alpha={prev_alpha:g}" if warm_start and prev_alpha is not None else init
+        rec = _record(float(alpha), charts, results, counter, sum(area3d), started, t0)
         records.append(rec)
         prev = [r.uv for r in results]
         prev_alpha = float(alpha)
@@ -380,6 +344,74 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
     E = np.array([r.energy for r in records])
     dF = finite_difference(a, E)
     dF_env = np.array([r.energy_area - r.energy_angle for r in records])
+    notes += _sweep_notes(a, records, warm_start)
+    return SweepResult(
+        records=records,
+        sensitivity=relative_sensitivity(a, E, dF, m_total),
+        dF_dalpha=dF,
+        dF_dalpha_envelope=dF_env,
+        sensitivity_envelope=relative_sensitivity(a, E, dF_env, m_total),
+        init=init, warm_start=bool(warm_start), backend=backend, n_charts=len(charts), notes=notes,
+    )
+
+
+def _record(alpha, charts, results, counter, area3d, started_from, t0):
+    d_area, d_angle, uv_area, n_over = _split_energy(charts, results, alpha, counter)
+    return AlphaRecord(
+        alpha=alpha,
+        energy=float(sum(r.energy for r in results)),
+        energy_area=d_area, energy_angle=d_angle,
+        iterations=int(sum(r.iterations for r in results)),
+        evaluations=int(sum(r.n_evaluations for r in results)),
+        n_flipped=int(sum(r.n_flipped for r in results)),
+        overlaps=n_over,
+        converged=bool(all(r.converged for r in results)),
+        grad_norm=float(max(r.grad_norm for r in results)),
+        uv_area_ratio=uv_area / area3d if area3d > 0 else float("nan"),
+        stop_reasons=sorted({r.stop_reason for r in results}),
+        started_from=started_from,
+        history=_sum_histories([r.history for r in results]),
+        time_s=time.perf_counter() - t0,
+    )
+
+
+class _OverlapCounter:
+    """Overlapping triangle pairs per chart; turns itself off (with a note) when the validator fails."""
+
+    def __init__(self, enabled, notes):
+        self.notes = notes
+        self.validate = validate if enabled else None
+
+    def count(self, alpha, chart, uv):
+        if self.validate is None:
+            return None
+        try:
+            return int(len(self.validate(uv, chart.F).overlap_pairs))
+        except Exception as exc:      # a validator failure must not lose the sweep
+            self.notes.append(f"alpha={alpha:g} {chart.name}: overlap check failed ({type(exc).__name__}: {exc})")
+            self.validate = None
+            return None
+
+
+def _split_energy(charts, results, alpha, counter):
+    """F* split into its area and angle terms, the total UV area, and the overlap count (None: unknown)."""
+    d_area = d_angle = 0.0
+    uv_area = 0.0
+    n_over = 0 if counter.validate is not None else None
+    for c, r in zip(charts, results):
+        e = DistortionEnergy(c.V, c.F, alpha=alpha)
+        da, dg = e.per_triangle(r.uv)
+        d_area += float(da.sum())
+        d_angle += float(dg.sum())
+        uv_area += float(np.sum(np.abs(signed_areas(r.uv, c.F))))
+        if n_over is not None:
+            n = counter.count(alpha, c, r.uv)
+            n_over = None if n is None else n_over + n
+    return d_area, d_angle, uv_area, n_over
+
+
+def _sweep_notes(a, records, warm_start):
+    notes = []
     if len(a) >= 2 and a[0] == 0.0:
         notes.append("alpha=0 is solved in uvbake's gauge (pinned conformal map at the surface's scale), "
                      "which is not the limit of F*(alpha) as alpha->0+ (the collapsed map): S(0)=0 by "
@@ -392,28 +424,7 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
         notes.append("not converged at alpha = " + ", ".join(f"{r.alpha:g}" for r in records if not r.converged))
     if warm_start:
         notes.append("warm start: each alpha started from the previous alpha's solution")
-    return SweepResult(
-        records=records,
-        sensitivity=relative_sensitivity(a, E, dF, m_total),
-        dF_dalpha=dF,
-        dF_dalpha_envelope=dF_env,
-        sensitivity_envelope=relative_sensitivity(a, E, dF_env, m_total),
-        init=init, warm_start=bool(warm_start), backend=backend, n_charts=len(charts), notes=notes,
-    )
-
-
-def _validator():
-    """uvbake's bijectivity check (module ``validation``, formerly ``validate``), or None."""
-    import importlib
-
-    for mod in ("uvbake.validate.core", "uvbake.validate"):
-        try:
-            fn = getattr(importlib.import_module(mod), "validate")
-        except (ImportError, AttributeError):
-            continue
-        if callable(fn):
-            return fn
-    return None
+    return notes
 
 
 def _sum_histories(histories):

@@ -12,6 +12,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -94,9 +95,29 @@ def output_path(mesh: str, output: str | None, *, suffix: str = "_uv", ext: str 
     return out
 
 
-def run(args: argparse.Namespace) -> int:
-    """``uvbake [unwrap] MESH ...``: unwrap, bake, write; the exit status (1 when the atlas is not valid)."""
-    t0 = time.perf_counter()
+@dataclass
+class _Outputs:
+    mesh: Path
+    report: Path | None
+    bake: Path | None
+    bake_mode: str | None
+    preview: Path | None
+
+
+def _bake_output(args: argparse.Namespace) -> tuple[Path | None, str | None]:
+    if args.bake or args.bake_mode:
+        bake_path = output_path(args.mesh, args.bake, suffix="_texture", ext=".png")
+        if bake_path.suffix.lower() != ".png":
+            raise InputError(f"--bake {bake_path} must end in .png")
+        name = bake_path.stem.lower()
+        return bake_path, args.bake_mode or ("vertex-colors" if ("color" in name or "colour" in name) else "checker")
+    if args.preview:
+        return None, "checker"                    # a preview of an untextured atlas shows the checker
+    return None, None
+
+
+def _outputs(args: argparse.Namespace) -> _Outputs:
+    """Every output path, checked before any work: right suffixes, distinct, never the input."""
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
     check_texture(args.texture_size, args.gutter)
@@ -104,15 +125,7 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() not in (".obj", ".glb"):
         raise InputError(f"output {out} must end in .obj or .glb")
     report_path = output_path(args.mesh, args.json, suffix="_report", ext=".json") if args.json else None
-    bake_path, mode = None, None
-    if args.bake or args.bake_mode:
-        bake_path = output_path(args.mesh, args.bake, suffix="_texture", ext=".png")
-        if bake_path.suffix.lower() != ".png":
-            raise InputError(f"--bake {bake_path} must end in .png")
-        name = bake_path.stem.lower()
-        mode = args.bake_mode or ("vertex-colors" if ("color" in name or "colour" in name) else "checker")
-    elif args.preview:
-        mode = "checker"                    # a preview of an untextured atlas shows the checker
+    bake_path, mode = _bake_output(args)
     preview_path = output_path(args.mesh, args.preview, suffix="_preview", ext=".png") if args.preview else None
     outputs = [out] + ([out.with_suffix(".mtl"), out.with_suffix(".png")] if out.suffix.lower() == ".obj" else [])
     outputs += [p for p in (report_path, bake_path, preview_path) if p is not None]
@@ -121,10 +134,13 @@ def run(args: argparse.Namespace) -> int:
                          "give -o, --json and --bake different names")
     if Path(args.mesh).exists() and Path(args.mesh).resolve() in {p.resolve() for p in outputs}:
         raise InputError(f"an output would replace the input {args.mesh}; choose other output names")
+    return _Outputs(out, report_path, bake_path, mode, preview_path)
 
+
+def _solve(args: argparse.Namespace, mode: str | None) -> Any:
     bar = _progress(quiet=args.quiet)
 
-    def on_stage(stage, done, total):
+    def on_stage(stage: str, done: int, total: int) -> None:
         if bar is not None:
             bar.set_description_str(f"uvbake {stage}", refresh=False)
             if stage == "solve":
@@ -132,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
                 bar.n = done
             bar.refresh()
 
-    def on_iteration(info):
+    def on_iteration(info: dict[str, Any]) -> None:
         if bar is not None:
             bar.set_postfix_str(f"iter {info['iteration']} |grad| {info['grad_norm']:.1e}", refresh=False)
 
@@ -147,32 +163,49 @@ def run(args: argparse.Namespace) -> int:
                                                           seed=args.seed, raise_on_disagree=False)
     if bar is not None:
         bar.close()
-    written = result.save(out)
-    if bake_path is not None:
-        save_png(bake_path, result.image)
-        written = list(written) + [bake_path]
-    if preview_path is not None:
-        preview(result, path=preview_path)
-        written = list(written) + [preview_path]
-    result.report["outputs"] = [str(p) for p in written] + ([str(report_path)] if report_path else [])
+    return result
+
+
+def _write(result: Any, paths: _Outputs, t0: float) -> list[Path]:
+    written = list(result.save(paths.mesh))
+    if paths.bake is not None:
+        save_png(paths.bake, result.image)
+        written.append(paths.bake)
+    if paths.preview is not None:
+        preview(result, path=paths.preview)
+        written.append(paths.preview)
+    result.report["outputs"] = [str(p) for p in written] + ([str(paths.report)] if paths.report else [])
     result.report["timings"]["cli_total_s"] = time.perf_counter() - t0
-    if report_path is not None:
-        with atomic_write(report_path) as fh:
+    if paths.report is not None:
+        with atomic_write(paths.report) as fh:
             json.dump(result.report, fh, indent=1)
+    return written
+
+
+def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
+    atlas = rep["atlas"]
+    print(f"uvbake: {rep['triangles']} triangles -> {rep['charts_final']} chart(s) "
+          f"({rep['charts_input']} before cuts and splits), alpha {alpha}; "
+          f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}%, "
+          f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written)}")
+    for w in (rep.get("repair") or {}).get("warnings", []):
+        print(f"uvbake: warning: {w}", file=sys.stderr)
+    for c in rep["charts"]:
+        if not c["converged"]:
+            print(f"uvbake: warning: {c['name']} stopped before convergence ({c['stop_reason']}, "
+                  f"|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations); raise --max-iter",
+                  file=sys.stderr)
+
+
+def run(args: argparse.Namespace) -> int:
+    """``uvbake [unwrap] MESH ...``: unwrap, bake, write; the exit status (1 when the atlas is not valid)."""
+    t0 = time.perf_counter()
+    paths = _outputs(args)
+    result = _solve(args, paths.bake_mode)
+    written = _write(result, paths, t0)
     rep = result.report
     if not args.quiet:
-        atlas = rep["atlas"]
-        print(f"uvbake: {rep['triangles']} triangles -> {rep['charts_final']} chart(s) "
-              f"({rep['charts_input']} before cuts and splits), alpha {args.alpha}; "
-              f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}%, "
-              f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written)}")
-        for w in (rep.get("repair") or {}).get("warnings", []):
-            print(f"uvbake: warning: {w}", file=sys.stderr)
-        for c in rep["charts"]:
-            if not c["converged"]:
-                print(f"uvbake: warning: {c['name']} stopped before convergence ({c['stop_reason']}, "
-                      f"|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations); raise --max-iter",
-                      file=sys.stderr)
+        _summary(rep, args.alpha, written)
     if args.cross_check and not rep["cross_check"]["agree"]:
         print(f"uvbake: failed: the backends disagree: {rep['cross_check']['message']}", file=sys.stderr)
         return 1
