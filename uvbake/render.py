@@ -125,6 +125,10 @@ def _inputs(source, F, corner_uv, image):
         raise InputError(f"F must be an (m,3) array of vertex indices into V, got shape {F.shape}")
     if corner_uv.shape != (len(F), 3, 2) or not np.all(np.isfinite(corner_uv)):
         raise InputError(f"corner_uv must be a finite ({len(F)},3,2) array, got shape {corner_uv.shape}")
+    return V, F, corner_uv, _check_image(image)
+
+
+def _check_image(image):
     if image is None:
         image = np.full((16, 16, 3), 200, np.uint8)
     image = np.asarray(image)
@@ -132,7 +136,7 @@ def _inputs(source, F, corner_uv, image):
         image = image[:, :, :3]
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
         raise InputError(f"image must be an (H,W,3) uint8 array, got {image.dtype} {image.shape}")
-    return V, F, corner_uv, np.ascontiguousarray(image)
+    return np.ascontiguousarray(image)
 
 
 def save_png(path, img):

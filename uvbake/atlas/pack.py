@@ -130,28 +130,30 @@ def _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method):
         n_f = None if chart_faces is None else len(chart_faces)
         raise InputError(f"got {len(chart_uvs)} chart UV arrays but {n_f} face arrays; pass one (t,3) face "
                          f"array per chart")
-    uvs, faces = [], []
-    for i, (uv, F) in enumerate(zip(chart_uvs, chart_faces)):
-        try:
-            uv = np.asarray(uv, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InputError(f"chart {i}: UVs are not numeric; pass a (k,2) float array") from None
-        if uv.ndim != 2 or uv.shape[1] != 2 or len(uv) == 0:
-            raise InputError(f"chart {i}: UVs have shape {uv.shape}; pass a (k,2) float array with k >= 1")
-        if not np.all(np.isfinite(uv)):
-            bad = int(np.flatnonzero(~np.isfinite(uv).all(axis=1))[0])
-            raise InputError(f"chart {i}: UVs contain NaN or infinite values (vertex {bad}); "
-                             f"re-run the parameterization of that chart")
-        F = np.asarray(F)
-        if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or not np.issubdtype(F.dtype, np.integer):
-            raise InputError(f"chart {i}: faces have shape {F.shape} and type {F.dtype}; "
-                             f"pass a non-empty (t,3) integer array")
-        if F.min() < 0 or F.max() >= len(uv):
-            raise InputError(f"chart {i}: face indices must lie in [0, {len(uv) - 1}]; "
-                             f"pass faces that index that chart's UVs")
-        uvs.append(uv)
-        faces.append(F.astype(np.int64))
+    checked = [_check_chart(i, uv, F) for i, (uv, F) in enumerate(zip(chart_uvs, chart_faces))]
+    uvs, faces = [c[0] for c in checked], [c[1] for c in checked]
     return uvs, faces, N, g
+
+
+def _check_chart(i: int, uv: Any, F: Any) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        uv = np.asarray(uv, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"chart {i}: UVs are not numeric; pass a (k,2) float array") from None
+    if uv.ndim != 2 or uv.shape[1] != 2 or len(uv) == 0:
+        raise InputError(f"chart {i}: UVs have shape {uv.shape}; pass a (k,2) float array with k >= 1")
+    if not np.all(np.isfinite(uv)):
+        bad = int(np.flatnonzero(~np.isfinite(uv).all(axis=1))[0])
+        raise InputError(f"chart {i}: UVs contain NaN or infinite values (vertex {bad}); "
+                         f"re-run the parameterization of that chart")
+    F = np.asarray(F)
+    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or not np.issubdtype(F.dtype, np.integer):
+        raise InputError(f"chart {i}: faces have shape {F.shape} and type {F.dtype}; "
+                         f"pass a non-empty (t,3) integer array")
+    if F.min() < 0 or F.max() >= len(uv):
+        raise InputError(f"chart {i}: face indices must lie in [0, {len(uv) - 1}]; "
+                         f"pass faces that index that chart's UVs")
+    return uv, F.astype(np.int64)
 
 
 # --------------------------------------------------------------------------------------- geometry

@@ -35,33 +35,9 @@ def load_obj_uv(path):
         raise InputError(f"{name}: is a directory, not a mesh file; pass the path of a mesh file inside it")
     if path.stat().st_size == 0:
         raise InputError(f"{name}: file is empty (0 bytes); export the mesh again")
-    verts, colors, uvs, tris, tri_uv = [], [], [], [], []
-    all_uv = True
     try:
         with open(path, encoding="utf-8", errors="strict") as f:
-            for line_no, line in enumerate(f, 1):
-                parts = line.split()
-                if not parts or parts[0].startswith("#"):
-                    continue
-                tag = parts[0]
-                if tag == "v":
-                    verts.append([float(t) for t in parts[1:4]])
-                    if len(verts[-1]) != 3:
-                        raise ValueError(f"line {line_no}: a 'v' line needs 3 coordinates")
-                    colors.append([float(t) for t in parts[4:7]] if len(parts) >= 7 else None)
-                elif tag == "vt":
-                    uvs.append([float(t) for t in parts[1:3]])
-                elif tag == "f":
-                    corners = [c.split("/") for c in parts[1:]]
-                    if len(corners) < 3:
-                        raise ValueError(f"line {line_no}: a face needs at least 3 corners")
-                    vi = [_obj_index(c[0], len(verts)) for c in corners]
-                    ti = [_obj_index(c[1], len(uvs)) if len(c) > 1 and c[1] else None
-                          for c in corners]
-                    for j in range(1, len(vi) - 1):
-                        tris.append([vi[0], vi[j], vi[j + 1]])
-                        tri_uv.append([ti[0], ti[j], ti[j + 1]])
-                    all_uv = all_uv and None not in ti
+            verts, colors, uvs, tris, tri_uv, all_uv = _parse_obj(f)
     except (ValueError, UnicodeDecodeError) as exc:
         reason = " ".join(str(exc).split())[:120]
         raise InputError(f"{name}: cannot read as OBJ ({reason}); "
@@ -82,6 +58,40 @@ def load_obj_uv(path):
             raise InputError(f"{name}: texture index out of range for {len(uv)} 'vt' lines; "
                              "export the mesh again")
     return mesh, uv, uv_faces
+
+
+def _parse_obj(lines):
+    """The v (with colours), vt and fan-triangulated f lines of an OBJ file; ValueError names a bad line."""
+    verts, colors, uvs, tris, tri_uv = [], [], [], [], []
+    all_uv = True
+    for line_no, line in enumerate(lines, 1):
+        parts = line.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        tag = parts[0]
+        if tag == "v":
+            verts.append([float(t) for t in parts[1:4]])
+            if len(verts[-1]) != 3:
+                raise ValueError(f"line {line_no}: a 'v' line needs 3 coordinates")
+            colors.append([float(t) for t in parts[4:7]] if len(parts) >= 7 else None)
+        elif tag == "vt":
+            uvs.append([float(t) for t in parts[1:3]])
+        elif tag == "f":
+            all_uv = _parse_face(parts, line_no, len(verts), len(uvs), tris, tri_uv) and all_uv
+    return verts, colors, uvs, tris, tri_uv, all_uv
+
+
+def _parse_face(parts, line_no, n_verts, n_uvs, tris, tri_uv):
+    """Append the fan triangles of one f line; True when every corner has a texture index."""
+    corners = [c.split("/") for c in parts[1:]]
+    if len(corners) < 3:
+        raise ValueError(f"line {line_no}: a face needs at least 3 corners")
+    vi = [_obj_index(c[0], n_verts) for c in corners]
+    ti = [_obj_index(c[1], n_uvs) if len(c) > 1 and c[1] else None for c in corners]
+    for j in range(1, len(vi) - 1):
+        tris.append([vi[0], vi[j], vi[j + 1]])
+        tri_uv.append([ti[0], ti[j], ti[j + 1]])
+    return None not in ti
 
 
 def _obj_index(token: str, count: int) -> int:
@@ -121,22 +131,7 @@ def save_obj(path, V, F, *, uv=None, uv_faces=None, vertex_colors=None, mtllib=N
         raise InputError(f"{name}: F must be (m,3) with indices in 0..{len(V) - 1}; "
                          "pass triangles indexing V")
     F = _as_int(F, name, "F")
-    if uv is not None:
-        uv = np.asarray(uv, dtype=np.float64)
-        if uv.ndim == 3 and uv.shape == (len(F), 3, 2) and uv_faces is None:
-            uv = uv.reshape(-1, 2)
-            uv_faces = np.arange(len(uv)).reshape(-1, 3)
-        elif uv_faces is None and uv.shape == (len(V), 2):
-            uv_faces = F
-        if uv.ndim != 2 or uv.shape[1] != 2 or uv_faces is None:
-            raise InputError(f"{name}: uv must be (k,2) with uv_faces (m,3), (n,2) per vertex or "
-                             f"(m,3,2) per corner, got shape {uv.shape}; pass matching uv_faces")
-        uv_faces = _as_int(np.asarray(uv_faces), name, "uv_faces")
-        if uv_faces.shape != F.shape or uv_faces.min() < 0 or uv_faces.max() >= len(uv):
-            raise InputError(f"{name}: uv_faces must be (m,3)={F.shape} with indices in "
-                             f"0..{len(uv) - 1}; pass one uv index per face corner")
-    elif uv_faces is not None:
-        raise InputError(f"{name}: uv_faces given without uv; pass uv too")
+    uv, uv_faces = _check_uv(name, V, F, uv, uv_faces)
     if vertex_colors is not None:
         vertex_colors = np.asarray(vertex_colors, dtype=np.float64)
         if vertex_colors.shape != V.shape:
@@ -158,6 +153,27 @@ def save_obj(path, V, F, *, uv=None, uv_faces=None, vertex_colors=None, mtllib=N
         else:
             corners = np.stack([F + 1, uv_faces + 1], axis=-1).reshape(len(F), 6)
             _write_rows(f, "f", corners, "%d/%d")
+
+
+def _check_uv(name, V, F, uv, uv_faces):
+    """UVs as (k,2) with uv_faces (m,3), from per-vertex, per-corner or indexed input."""
+    if uv is not None:
+        uv = np.asarray(uv, dtype=np.float64)
+        if uv.ndim == 3 and uv.shape == (len(F), 3, 2) and uv_faces is None:
+            uv = uv.reshape(-1, 2)
+            uv_faces = np.arange(len(uv)).reshape(-1, 3)
+        elif uv_faces is None and uv.shape == (len(V), 2):
+            uv_faces = F
+        if uv.ndim != 2 or uv.shape[1] != 2 or uv_faces is None:
+            raise InputError(f"{name}: uv must be (k,2) with uv_faces (m,3), (n,2) per vertex or "
+                             f"(m,3,2) per corner, got shape {uv.shape}; pass matching uv_faces")
+        uv_faces = _as_int(np.asarray(uv_faces), name, "uv_faces")
+        if uv_faces.shape != F.shape or uv_faces.min() < 0 or uv_faces.max() >= len(uv):
+            raise InputError(f"{name}: uv_faces must be (m,3)={F.shape} with indices in "
+                             f"0..{len(uv) - 1}; pass one uv index per face corner")
+    elif uv_faces is not None:
+        raise InputError(f"{name}: uv_faces given without uv; pass uv too")
+    return uv, uv_faces
 
 
 def _write_rows(f, tag: str, rows: np.ndarray, fmt: str) -> None:

@@ -449,6 +449,25 @@ def repair(V, F, *, min_component_faces=None, weld_tol=1e-9):
     InputError  for malformed arrays (shapes, indices out of range) and for what duplicating
                 vertices cannot fix, naming the elements.
     """
+    V, F = _check_repair_input(V, F, min_component_faces, weld_tol)
+    fidx, vidx = np.arange(len(F)), np.arange(len(V))
+    actions, warns = [], []
+    for p in range(MAX_PASSES):                       # a handful of passes to a fixed point
+        V2, F2, fi, vi, act, w = _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol)
+        if not act:
+            break
+        for a in act:
+            a["pass"] = p + 1
+        actions += act
+        warns += w
+        V, F, fidx, vidx = V2, F2, fi, vi
+    if len(F) == 0:
+        raise InputError("repair: no usable triangles are left (all were NaN, degenerate or specks); "
+                         "check the input mesh")
+    return RepairResult(V, F, fidx, vidx, actions, warns)
+
+
+def _check_repair_input(V, F, min_component_faces, weld_tol):
     try:
         V = np.asarray(V, dtype=np.float64)
     except (TypeError, ValueError):
@@ -471,18 +490,4 @@ def repair(V, F, *, min_component_faces=None, weld_tol=1e-9):
         raise InputError(f"repair: min_component_faces={min_component_faces!r} must be a non-negative integer")
     if not (np.isfinite(weld_tol) and weld_tol >= 0):
         raise InputError(f"repair: weld_tol={weld_tol!r} must be a non-negative number (relative to the mean edge)")
-    fidx, vidx = np.arange(len(F)), np.arange(len(V))
-    actions, warns = [], []
-    for p in range(MAX_PASSES):                       # a handful of passes to a fixed point
-        V2, F2, fi, vi, act, w = _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol)
-        if not act:
-            break
-        for a in act:
-            a["pass"] = p + 1
-        actions += act
-        warns += w
-        V, F, fidx, vidx = V2, F2, fi, vi
-    if len(F) == 0:
-        raise InputError("repair: no usable triangles are left (all were NaN, degenerate or specks); "
-                         "check the input mesh")
-    return RepairResult(V, F, fidx, vidx, actions, warns)
+    return V, F
