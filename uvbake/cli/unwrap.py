@@ -3,6 +3,7 @@
     uvbake MESH [--alpha A] [--bake checker.png] [-o OUT.obj|OUT.glb] [--json R.json] [...]
     uvbake check MESH [...]     validate the UVs of a textured mesh (see ``uvbake check --help``)
     uvbake sweep MESH [...]     alpha sensitivity study (see ``uvbake sweep --help``)
+    uvbake batch INPUTS... -o OUTDIR   many meshes on Dask (see ``uvbake batch --help``)
 
 Errors print one line and exit non-zero (2 for bad input, 1 for a failed solve, 3 for a bug), never a
 traceback (set UVBAKE_DEBUG=1 to see one). Output files are written atomically and never replace the
@@ -18,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-SUBCOMMANDS = {"check": "uvbake.cli.check", "sweep": "uvbake.cli.sweep"}
+SUBCOMMANDS = {"check": "uvbake.cli.check", "sweep": "uvbake.cli.sweep", "batch": "uvbake.batch.cli"}
 
 
 def _parser():
