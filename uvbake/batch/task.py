@@ -128,7 +128,8 @@ def _run_child(staging: Path, timeout_s):
             code = proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
             _kill(proc)
-            return "timeout", f"stopped after the time limit of {timeout_s:g} s (--timeout-per-asset)"
+            return "timeout", (f"stopped after its time limit of {timeout_s:g} s; raise --timeout-per-asset "
+                               "(or the manifest's timeout_s) if it needs longer")
         except BaseException:          # the worker is being shut down: take the child with us
             _kill(proc)
             raise
