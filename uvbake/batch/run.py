@@ -103,6 +103,7 @@ def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_p
         in ``error``), ``invalid`` (the atlas did not validate), ``timeout``, ``crashed`` or ``lost``.
         A table because it is what the summary files hold; ``.to_pylist()`` gives dicts.
     """
+    _require_extra()
     opts = normalise_options(**options)
     if not (timeout_per_asset_s and timeout_per_asset_s > 0):
         raise InputError(f"timeout_per_asset_s={timeout_per_asset_s!r} must be a positive number of seconds")
@@ -157,6 +158,17 @@ def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_p
 
         write_report(out / "report.html", table.to_pylist(), out)
     return table
+
+
+def _require_extra():
+    from ..errors import UvbakeError
+
+    try:
+        import distributed  # noqa: F401
+        import pyarrow  # noqa: F401
+    except ImportError as exc:
+        raise UvbakeError(f"uvbake batch needs dask.distributed and pyarrow ({exc}); install them with "
+                          "pip install 'uvbake[batch]'") from None
 
 
 def _run_dask(client, todo, rows, retries, bar):
