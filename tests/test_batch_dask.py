@@ -1,5 +1,6 @@
 """uvbake batch on a real Dask cluster: `dask scheduler` and `dask worker` processes on 127.0.0.1."""
 
+import contextlib
 import json
 import subprocess
 import sys
@@ -34,12 +35,14 @@ def client(dask_cluster):
 
 
 def _children_of(out):
-    """Processes still running an asset of the batch writing into ``out``."""
+    """Processes still running an asset of the batch writing into ``out`` (their output goes to its staging)."""
     hits = []
     for p in psutil.process_iter(["cmdline"]):
-        cmd = " ".join(p.info["cmdline"] or [])
-        if "uvbake.batch.child" in cmd and str(out) in cmd:
-            hits.append(p)
+        if "uvbake.batch.zygote" not in " ".join(p.info["cmdline"] or []):
+            continue
+        with contextlib.suppress(psutil.Error):
+            if any(str(out) in f.path for f in p.open_files()):
+                hits.append(p)
     return hits
 
 

@@ -1,6 +1,7 @@
-"""The process that unwraps one asset of a batch: ``python -m uvbake.batch.child SPEC.json``.
+"""The process that unwraps one asset of a batch (forked by :mod:`uvbake.batch.zygote`, or run as
+``python -m uvbake.batch.child SPEC.json``).
 
-It is started by :func:`uvbake.batch.task.process` for every asset, so the asset's time limit can
+:func:`uvbake.batch.task.process` runs every asset in such a process, so the asset's time limit can
 really stop it (a kill of the whole process, whatever native code it is in: CHOLMOD, Open3D) and a
 crash takes down this process only, never the Dask worker. It writes everything into the staging
 folder named by the spec and nothing elsewhere; the worker moves the files into place afterwards.
@@ -43,11 +44,16 @@ def _atlas_charts(result, size_px):
 ATLAS_IMAGES.update(texture=_atlas_texture, charts=_atlas_charts)
 
 
-def _watch_parent():
+def _watch_parent(watch_pid):
     """Exit when the worker that started us is gone (a killed Dask worker must not leave us running)."""
     parent = os.getppid()
     while True:
         time.sleep(0.5)
+        try:
+            if watch_pid:
+                os.kill(watch_pid, 0)
+        except ProcessLookupError:
+            os._exit(70)
         if os.getppid() != parent:
             os._exit(70)
 
@@ -108,7 +114,7 @@ def run(spec: dict) -> dict:
 
 def main(argv):
     spec = json.loads(Path(argv[0]).read_text())
-    threading.Thread(target=_watch_parent, daemon=True).start()
+    threading.Thread(target=_watch_parent, args=(spec.get("watch_pid"),), daemon=True).start()
     staging = Path(spec["staging"])
     try:
         row = run(spec)

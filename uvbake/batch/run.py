@@ -81,7 +81,8 @@ def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_p
         (default: the usable cores) with one thread each, closed at the end. ``client="local"`` runs a
         plain loop in this process (no Dask; the benchmark's baseline).
     timeout_per_asset_s : float
-        Time limit per asset, child process start included (a manifest's ``timeout_s`` overrides it).
+        Time limit per asset, from the fork of its process to its end, file writes and thumbnails
+        included (a manifest's ``timeout_s`` overrides it).
     retries : int
         Dask retries of a task that raised (not of an asset that failed: that is recorded). Tasks on
         workers that died are rescheduled by Dask up to ``distributed.scheduler.allowed-failures``

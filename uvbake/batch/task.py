@@ -1,12 +1,13 @@
 """One asset, on a Dask worker (or in a plain loop): run it in a child process, then commit its files.
 
-Time limits are enforced by running every asset in a child process (``python -m uvbake.batch.child``)
-in its own process group, killed with SIGKILL when the limit passes. Why not in the worker: the time
+Time limits are enforced by running every asset in a child process (forked by a pre-imported
+:mod:`uvbake.batch.zygote`, one per worker thread) in its own session, killed with SIGKILL when the
+limit passes. Why not in the worker: the time
 goes into native code (CHOLMOD, Open3D) that no Python-level signal or thread can interrupt, Dask
 has no per-task limit that stops a running task, and killing the worker instead would count as a
 worker failure against Dask's bounded retries and lose the other work on it. The child also turns a
-segfault into one asset's "crashed" record. It costs one interpreter start and the imports (about
-2 s here; see the README's batch figures); the child exits when its worker dies.
+segfault into one asset's "crashed" record. Forking from the zygote avoids paying an interpreter
+start and the imports per asset; the child exits when its worker dies.
 
 Commit protocol (so an interrupted batch never leaves something a rerun would trust): the child writes
 into ``assets/<id>/.staging-<random>/``; on success the worker removes the old marker, renames every
@@ -17,15 +18,18 @@ matches and every listed file still has its recorded hash.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
+import select
 import shutil
 import signal
 import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -91,7 +95,7 @@ def process(spec: dict) -> dict:
     row = dict(asset=spec["id"], input=spec["input"], key=spec["key"], worker=worker_name())
     try:
         child_spec = dict(input=spec["input"], staging=str(staging), stem=Path(spec["input"]).stem,
-                          options=spec["options"])
+                          options=spec["options"], watch_pid=os.getpid())
         (staging / "spec.json").write_text(json.dumps(child_spec))
         status, error = _run_child(staging, spec["timeout_s"])
         if status == "done":
@@ -118,36 +122,81 @@ def process(spec: dict) -> dict:
 
 
 def _run_child(staging: Path, timeout_s):
-    """Run the child on ``staging/spec.json``; return (status, one-line error or None)."""
+    """Run the asset of ``staging/spec.json`` in a child process; return (status, one-line error or None)."""
     log = staging / "child.log"
-    with open(log, "wb") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "uvbake.batch.child", str(staging / "spec.json")],
-                                stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-                                start_new_session=True, env=_child_env())
-        try:
-            code = proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            _kill(proc)
-            return "timeout", (f"stopped after its time limit of {timeout_s:g} s; raise --timeout-per-asset "
-                               "(or the manifest's timeout_s) if it needs longer")
-        except BaseException:          # the worker is being shut down: take the child with us
-            _kill(proc)
-            raise
+    pid, code = _ZYGOTES.run(staging / "spec.json", timeout_s)
+    if code is None:
+        return "timeout", (f"stopped after its time limit of {timeout_s:g} s; raise --timeout-per-asset "
+                           "(or the manifest's timeout_s) if it needs longer")
     if code == 0 and (staging / "row.json").exists():
         return "done", None
     if (staging / "error.json").exists():
         return "failed", json.loads((staging / "error.json").read_text())["error"]
-    tail = [ln for ln in log.read_text(errors="replace").splitlines() if ln.strip()][-1:]
+    tail = [ln for ln in log.read_text(errors="replace").splitlines() if ln.strip()][-1:] if log.exists() else []
     how = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exit status {code}"
     return "crashed", f"the unwrap process crashed ({how})" + (f": {tail[0].strip()[:300]}" if tail else "")
 
 
-def _kill(proc):
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)   # its own process group: the renderer's threads go too
-    except ProcessLookupError:
-        pass
-    proc.wait()
+class _Zygotes:
+    """One pre-imported zygote (:mod:`uvbake.batch.zygote`) per worker thread, started on first use."""
+
+    def __init__(self):
+        self._local = threading.local()
+
+    def _get(self):
+        z = getattr(self._local, "proc", None)
+        if z is None or z.poll() is not None:
+            z = subprocess.Popen([sys.executable, "-m", "uvbake.batch.zygote"], stdin=subprocess.PIPE,
+                                 stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, bufsize=0,
+                                 start_new_session=True, env=_child_env())
+            self._local.proc, self._local.buf = z, b""
+        return z
+
+    def run(self, spec_path, timeout_s):
+        """(pid, exit code or None when the time limit stopped it); negative codes are signals."""
+        z = self._get()
+        try:
+            z.stdin.write(f"{spec_path}\n".encode())
+            pid = int(self._line(z, 120.0).split()[1])       # the imports happen before the first answer
+        except (OSError, ValueError, IndexError, TimeoutError) as exc:
+            self._discard(z)
+            raise RuntimeError(f"the uvbake zygote process failed to start an asset ({exc})") from None
+        try:
+            status = int(self._line(z, timeout_s).split()[1])
+        except TimeoutError:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(pid, signal.SIGKILL)     # its own session: whatever it started goes too
+            self._line(z, 60.0)                   # the zygote reaps it
+            return pid, None
+        except BaseException:                     # the worker is shutting down: take the child with us
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(pid, signal.SIGKILL)
+            self._discard(z)
+            raise
+        return pid, os.waitstatus_to_exitcode(status)
+
+    def _line(self, z, timeout_s):
+        """The zygote's next answer line, waiting at most ``timeout_s`` (the asset's time limit)."""
+        fd, deadline = z.stdout.fileno(), time.monotonic() + timeout_s
+        while b"\n" not in self._local.buf:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or not select.select([fd], [], [], remaining)[0]:
+                raise TimeoutError
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                raise OSError("the zygote exited")
+            self._local.buf += chunk
+        line, _, self._local.buf = self._local.buf.partition(b"\n")
+        return line.decode()
+
+    def _discard(self, z):
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(z.pid, signal.SIGKILL)
+        z.wait()
+        self._local.proc = None
+
+
+_ZYGOTES = _Zygotes()
 
 
 def _child_env():
