@@ -173,10 +173,13 @@ def _require_extra():
 
 
 def _run_dask(client, todo, rows, retries, bar):
+    import uuid
+
     from distributed import as_completed
 
-    futures = {client.submit(process, spec, key=f"uvbake-batch-{spec['key'][:16]}-{spec['id']}", pure=False,
-                             retries=retries): spec for spec in todo}
+    run_id = uuid.uuid4().hex[:8]       # a rerun's tasks never meet an earlier run's results held by the scheduler
+    futures = {client.submit(process, spec, key=f"uvbake-batch-{run_id}-{spec['key'][:12]}-{spec['id']}",
+                             pure=False, retries=retries): spec for spec in todo}
     for fut in as_completed(futures):
         spec = futures[fut]
         try:
