@@ -120,3 +120,20 @@ def test_an_interrupted_or_damaged_asset_is_never_trusted(tmp_path):
     assert run([src], out, **opts).column("status").to_pylist() == ["cached"]
     # other options are another key: redone
     assert run([src], out, **dict(opts, alpha=0.2)).column("status").to_pylist() == ["done"]
+
+
+def test_the_zygote_is_single_threaded_when_it_forks(tmp_path):
+    """fork() after the imports is only safe with no other thread alive in the zygote."""
+    import os
+
+    import psutil
+
+    from uvbake.batch import run
+
+    (src,) = good_meshes(tmp_path / "in", 1)
+    assert run([src], tmp_path / "out", client="local", bake="checker", preview_size_px=32,
+               texture_size_px=64).column("status").to_pylist() == ["done"]
+    zygotes = [p for p in psutil.Process(os.getpid()).children()
+               if "uvbake.batch.zygote" in " ".join(p.cmdline())]
+    assert len(zygotes) == 1                              # one per thread that ran assets: this one
+    assert zygotes[0].num_threads() == 1                  # after importing uvbake, Open3D, trimesh, CHOLMOD
