@@ -84,7 +84,7 @@ def plain_loop(paths, out: Path, opts):
 def dask_run(paths, out: Path, n_workers, opts, timeout_s):
     from distributed import Client, LocalCluster
 
-    import uvbake.batch as batch
+    from uvbake import batch
 
     t = time.perf_counter()
     with LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
@@ -122,7 +122,7 @@ def main():
         t = time.perf_counter()
         paths = make_corpus(tmp / "corpus", args.assets)
         tris = [_triangles(p) for p in paths]
-        say(f"corpus: {len(paths)} meshes from {len(set(p.stem.split('_', 1)[1].rsplit('_', 1)[0] for p in paths))} "
+        say(f"corpus: {len(paths)} meshes from {len({p.stem.split('_', 1)[1].rsplit('_', 1)[0] for p in paths})} "
             f"bases, {min(tris)}-{max(tris)} triangles (median {int(np.median(tris))}), made in "
             f"{time.perf_counter() - t:.0f} s; options {opts}; {os.cpu_count()} cores, shared machine")
         say()

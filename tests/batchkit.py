@@ -10,7 +10,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from meshgen import bumpy_disk, cone, cut_cylinder, grid, plane
 
 REPO = Path(__file__).resolve().parents[1]
@@ -93,9 +92,9 @@ class Cluster:
         self.wait_for_workers(n_workers)
 
     def _start(self, name, argv):
-        log = open(self.tmp / f"{name}.log", "wb")
-        self.procs[name] = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                            env=env(), start_new_session=True)
+        with open(self.tmp / f"{name}.log", "wb") as log:     # the process keeps its own copy of the handle
+            self.procs[name] = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                                env=env(), start_new_session=True)
 
     def _check_alive(self, name, deadline):
         if self.procs[name].poll() is not None or time.monotonic() > deadline:
@@ -144,7 +143,7 @@ def cluster(tmp, n_workers=2):
 
 def batch_cli(*args, timeout=120):
     """Run ``uvbake batch ARGS`` as a process; return (exit status, stdout, stderr)."""
-    p = subprocess.run([sys.executable, "-m", "uvbake.cli", "batch", *map(str, args)], capture_output=True, text=True,
+    p = subprocess.run([sys.executable, "-m", "uvbake.cli", "batch", *map(str, args)], capture_output=True, text=True, check=False,
                        env=env(), timeout=timeout, stdin=subprocess.DEVNULL)
     return p.returncode, p.stdout, p.stderr
 

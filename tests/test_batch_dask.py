@@ -8,9 +8,17 @@ import time
 
 import psutil
 import pytest
-
-from batchkit import (batch_cli, cluster, corrupt_mesh, env, good_meshes, raising_mesh, slow_mesh, summary,
-                      write_ply)
+from batchkit import (
+    batch_cli,
+    cluster,
+    corrupt_mesh,
+    env,
+    good_meshes,
+    raising_mesh,
+    slow_mesh,
+    summary,
+    write_ply,
+)
 from meshgen import plane
 
 pytest.importorskip("distributed")
@@ -60,7 +68,7 @@ def test_bad_assets_are_recorded_the_rest_done_and_a_rerun_redoes_only_the_faile
     (tmp_path / "list.csv").write_text("path,timeout_s\nbig/slow.ply,1.0\n")
     out = tmp_path / "out"
 
-    code, stdout, stderr = batch_cli(tmp_path / "in", tmp_path / "list.csv", "-o", out,
+    code, _, stderr = batch_cli(tmp_path / "in", tmp_path / "list.csv", "-o", out,
                                      "--scheduler", dask_cluster.address, *FAST[:-1])
     assert code == 1, stderr
     rows = summary(out)
@@ -112,7 +120,7 @@ def test_batch_outputs_are_byte_identical_to_the_single_asset_command(tmp_path, 
     single.mkdir()
     p = subprocess.run([sys.executable, "-m", "uvbake.cli", str(src), "-o", str(single / "good0_uv.obj"),
                         "--alpha", "0.3", "--texture-size", "256", "--gutter", "3", "--bake",
-                        str(single / "checker.png"), "-q"], env=env(), capture_output=True, text=True)
+                        str(single / "checker.png"), "-q"], env=env(), capture_output=True, text=True, check=False)
     assert p.returncode == 0, p.stderr
     for name in ("good0_uv.obj", "good0_uv.mtl", "good0_uv.png"):
         assert (tmp_path / "out" / "assets" / "good0" / name).read_bytes() == (single / name).read_bytes(), name
@@ -139,7 +147,7 @@ def test_killing_a_worker_mid_batch_loses_no_asset(tmp_path):
                 time.sleep(0.05)
             assert running and len(done) < len(paths), "the batch ended before a worker could be killed"
             c.kill("w0")
-            stdout, stderr = proc.communicate(timeout=120)
+            _, stderr = proc.communicate(timeout=120)
         finally:
             if proc.poll() is None:
                 proc.kill()

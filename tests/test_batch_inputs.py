@@ -3,8 +3,8 @@
 import json
 
 import pytest
-
 from batchkit import good_meshes
+
 from uvbake.batch.inputs import collect, options_hash
 from uvbake.batch.run import normalise_options
 from uvbake.cli import main

@@ -5,7 +5,6 @@ import subprocess
 
 import numpy as np
 import pytest
-
 from batchkit import corrupt_mesh, good_meshes
 
 pytest.importorskip("pyarrow")
@@ -16,7 +15,7 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-
 
 def _chromium(tmp_path, *args):
     p = subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", *args],
-                       capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+                       capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL, check=False)
     assert p.returncode == 0, p.stderr[-2000:]
     return p.stdout
 

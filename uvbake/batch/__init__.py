@@ -12,4 +12,4 @@ marker written last (:mod:`uvbake.batch.inputs`, :mod:`uvbake.batch.task`), and 
 
 from .run import COLUMNS, exit_status, normalise_options, run
 
-__all__ = ["run", "exit_status", "normalise_options", "COLUMNS"]
+__all__ = ["COLUMNS", "exit_status", "normalise_options", "run"]

@@ -118,7 +118,7 @@ def main(argv):
     staging = Path(spec["staging"])
     try:
         row = run(spec)
-    except Exception as exc:  # any failure of this one asset becomes its one-line record
+    except Exception as exc:  # noqa: BLE001 - any failure of this one asset becomes its one-line record
         line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
         (staging / "error.json").write_text(json.dumps({"error": f"{type(exc).__name__}: {line}"}))
         sys.stdout.flush()

@@ -10,7 +10,14 @@ from pathlib import Path
 
 from ..errors import InputError
 from .inputs import collect, file_hash, options_hash
-from .task import MARKER, OK_STATUSES, STAGING_PREFIX, process, read_marker, write_marker
+from .task import (
+    MARKER,
+    OK_STATUSES,
+    STAGING_PREFIX,
+    process,
+    read_marker,
+    write_marker,
+)
 
 #: unwrap options a batch accepts, with uvbake.unwrap's defaults (bake: a checker, for the previews)
 UNWRAP_DEFAULTS = dict(alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1000, seed=0,
@@ -184,7 +191,7 @@ def _run_dask(client, todo, rows, retries, bar):
         spec = futures[fut]
         try:
             rows[spec["id"]] = fut.result()
-        except Exception as exc:  # the task itself could not run (its worker kept dying, or a bug): record it
+        except Exception as exc:  # noqa: BLE001 - the task itself could not run (its worker kept dying, or a bug): record it
             line = (str(exc).strip().splitlines() or [""])[0]
             row = dict(asset=spec["id"], input=spec["input"], key=spec["key"], status="lost",
                        error=f"{type(exc).__name__}: {line}"[:500])

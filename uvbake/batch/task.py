@@ -124,7 +124,7 @@ def process(spec: dict) -> dict:
 def _run_child(staging: Path, timeout_s):
     """Run the asset of ``staging/spec.json`` in a child process; return (status, one-line error or None)."""
     log = staging / "child.log"
-    pid, code = _ZYGOTES.run(staging / "spec.json", timeout_s)
+    _, code = _ZYGOTES.run(staging / "spec.json", timeout_s)
     if code is None:
         return "timeout", (f"stopped after its time limit of {timeout_s:g} s; raise --timeout-per-asset "
                            "(or the manifest's timeout_s) if it needs longer")

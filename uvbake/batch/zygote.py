@@ -27,8 +27,8 @@ def main():
 
     for name in PRELOAD:
         importlib.import_module(name)
-    from .child import main as child_main
     from ..solvers.linalg import cholmod_available
+    from .child import main as child_main
 
     cholmod_available()           # load CHOLMOD and its BLAS once, before any fork
     out = sys.stdout
