@@ -66,7 +66,7 @@ def make_corpus(folder: Path, n: int, seed: int = 0) -> list:
 
 def plain_loop(paths, out: Path, opts):
     """The baseline: one process, one asset after the other, imports paid once."""
-    from uvbake.pipeline import unwrap
+    from uvbake.atlas.pipeline import unwrap
 
     ok = 0
     for p in paths:

@@ -129,7 +129,7 @@ def test_batch_outputs_are_byte_identical_to_the_single_asset_command(tmp_path, 
 def test_killing_a_worker_mid_batch_loses_no_asset(tmp_path):
     from distributed import Client
 
-    paths = good_meshes(tmp_path / "in", 8)
+    paths = good_meshes(tmp_path / "in", 6)
     out = tmp_path / "out"
     with cluster(tmp_path / "dask", n_workers=2) as c, Client(c.address, timeout="30s") as watch:
         proc = subprocess.Popen([sys.executable, "-m", "uvbake.cli", "batch", str(tmp_path / "in"), "-o", str(out),

@@ -10,6 +10,6 @@ marker written last (:mod:`uvbake.batch.inputs`, :mod:`uvbake.batch.task`), and 
 (:mod:`uvbake.batch.report`).
 """
 
-from .run import COLUMNS, exit_status, normalise_options, run
+from uvbake.batch.run import COLUMNS, exit_status, normalise_options, run
 
 __all__ = ["COLUMNS", "exit_status", "normalise_options", "run"]

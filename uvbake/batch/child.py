@@ -35,7 +35,7 @@ def _atlas_texture(result, size_px):
 
 
 def _atlas_charts(result, size_px):
-    from ..validation import validate
+    from uvbake.validate.core import validate
 
     # the validator's own picture: every chart in its colour, overlaps red, flipped triangles blue
     return validate(result.corner_uv, result.F, chart_ids=result.chart_ids, resolution_px=size_px).overlap_image()
@@ -61,9 +61,9 @@ def _watch_parent(watch_pid):
 def run(spec: dict) -> dict:
     """Unwrap, save and draw one asset as the spec says; return the row's numbers."""
     t_start = time.perf_counter()
-    from ..export import save_png
-    from ..io import atomic_write
-    from ..pipeline import unwrap
+    from uvbake.atlas.pipeline import unwrap
+    from uvbake.io.atomic import atomic_write
+    from uvbake.io.export import save_png
 
     staging = Path(spec["staging"])
     opts = spec["options"]
@@ -77,7 +77,7 @@ def run(spec: dict) -> dict:
     images = {}
     t = time.perf_counter()
     if opts["preview_size_px"]:
-        from ..render import RenderError, preview
+        from uvbake.render import RenderError, preview
 
         try:    # already in a child process of our own, so the renderer needs no second one
             preview(result, path=staging / "preview.png", size_px=opts["preview_size_px"], isolate=False)

@@ -27,8 +27,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import InputError
-from ..io import MESH_EXTENSIONS
+from uvbake.errors import InputError
+from uvbake.io.load import MESH_EXTENSIONS
 
 MANIFEST_EXTENSIONS = (".txt", ".csv")
 

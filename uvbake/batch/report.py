@@ -68,7 +68,7 @@ if(location.search.includes('selftest=1')){window.addEventListener('load',()=>{
 
 def write_report(path, rows, out_dir) -> Path:
     """Write the report for ``rows`` (summary rows, failures first) to ``path``, atomically."""
-    from ..io import atomic_write
+    from uvbake.io.atomic import atomic_write
 
     out_dir = Path(out_dir)
     n_bad = sum(r["status"] not in ("done", "cached") for r in rows)

@@ -8,9 +8,8 @@ import shutil
 import sys
 from pathlib import Path
 
-from ..errors import InputError
-from .inputs import collect, file_hash, options_hash
-from .task import (
+from uvbake.batch.inputs import collect, file_hash, options_hash
+from uvbake.batch.task import (
     MARKER,
     OK_STATUSES,
     STAGING_PREFIX,
@@ -18,6 +17,7 @@ from .task import (
     read_marker,
     write_marker,
 )
+from uvbake.errors import InputError
 
 #: unwrap options a batch accepts, with uvbake.unwrap's defaults (bake: a checker, for the previews)
 UNWRAP_DEFAULTS = dict(alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1000, seed=0,
@@ -41,10 +41,10 @@ def normalise_options(**options):
 
     Raises InputError naming the option (by its Python name) for anything not usable.
     """
-    from .. import __version__
-    from ..parameterization import _check_options
-    from ..pipeline import BAKE_MODES, _check_texture
-    from .child import ATLAS_IMAGES
+    from uvbake import __version__
+    from uvbake.atlas.pipeline import BAKE_MODES, _check_texture
+    from uvbake.batch.child import ATLAS_IMAGES
+    from uvbake.flatten.solve import _check_options
 
     unknown = sorted(set(options) - set(UNWRAP_DEFAULTS) - set(OUTPUT_DEFAULTS))
     if unknown:
@@ -162,14 +162,14 @@ def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_p
     table = _table([rows[a.id] for a in assets])
     _write_summary(out, table)
     if html:
-        from .report import write_report
+        from uvbake.batch.report import write_report
 
         write_report(out / "report.html", table.to_pylist(), out)
     return table
 
 
 def _require_extra():
-    from ..errors import UvbakeError
+    from uvbake.errors import UvbakeError
 
     try:
         import distributed  # noqa: F401
@@ -257,7 +257,7 @@ def _write_summary(out: Path, table):
     import pyarrow.csv as pcsv
     import pyarrow.parquet as pq
 
-    from ..io import atomic_write
+    from uvbake.io.atomic import atomic_write
 
     buf = _io.BytesIO()
     pq.write_table(table, buf)

@@ -33,7 +33,7 @@ import threading
 import time
 from pathlib import Path
 
-from ..io import atomic_write
+from uvbake.io.atomic import atomic_write
 
 MARKER = "status.json"
 STAGING_PREFIX = ".staging-"

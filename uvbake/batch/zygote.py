@@ -18,7 +18,8 @@ from __future__ import annotations
 import os
 import sys
 
-PRELOAD = ("uvbake.pipeline", "uvbake.export", "uvbake.batch.child", "uvbake.render", "uvbake.bake", "open3d",
+PRELOAD = ("uvbake.atlas.pipeline", "uvbake.io.export", "uvbake.batch.child", "uvbake.render", "uvbake.atlas.bake",
+           "open3d",
            "trimesh", "PIL.Image")
 
 
@@ -27,8 +28,8 @@ def main():
 
     for name in PRELOAD:
         importlib.import_module(name)
-    from ..solvers.linalg import cholmod_available
-    from .child import main as child_main
+    from uvbake.batch.child import main as child_main
+    from uvbake.flatten.solvers.linalg import cholmod_available
 
     cholmod_available()           # load CHOLMOD and its BLAS once, before any fork
     out = sys.stdout

@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-SUBCOMMANDS = {"check": "uvbake.cli.check", "sweep": "uvbake.cli.sweep", "batch": "uvbake.batch.cli"}
+SUBCOMMANDS = {"check": "uvbake.cli.check", "sweep": "uvbake.cli.sweep", "batch": "uvbake.cli.batch"}
 
 
 def _parser():

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .run import DEFAULT_TIMEOUT_S, OUTPUT_DEFAULTS, UNWRAP_DEFAULTS
+from uvbake.batch.run import DEFAULT_TIMEOUT_S, OUTPUT_DEFAULTS, UNWRAP_DEFAULTS
 
 
 def parser():
@@ -63,8 +63,8 @@ def parser():
 
 
 def main(argv=None):
-    from ..errors import InputError
-    from .run import exit_status, run
+    from uvbake.batch.run import exit_status, run
+    from uvbake.errors import InputError
 
     args = parser().parse_args(sys.argv[1:] if argv is None else argv)
     if args.scheduler and args.workers is not None:
