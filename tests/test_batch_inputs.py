@@ -137,3 +137,17 @@ def test_the_zygote_is_single_threaded_when_it_forks(tmp_path):
                if "uvbake.batch.zygote" in " ".join(p.cmdline())]
     assert len(zygotes) == 1                              # one per thread that ran assets: this one
     assert zygotes[0].num_threads() == 1                  # after importing uvbake, Open3D, trimesh, CHOLMOD
+
+
+def test_an_asset_whose_task_cannot_run_is_recorded_as_lost_and_the_rest_go_on(tmp_path):
+    from uvbake.batch import exit_status, run
+
+    good_meshes(tmp_path / "in", 2)
+    out = tmp_path / "out"
+    (out / "assets").mkdir(parents=True)
+    (out / "assets" / "good0").write_text("a file where the asset's folder must go")
+    table = run([tmp_path / "in"], out, client="local", bake=None, preview_size_px=0, texture_size_px=64)
+    rows = {r["asset"]: r for r in table.to_pylist()}
+    assert rows["good0"]["status"] == "lost" and rows["good0"]["error"].startswith("FileExistsError")
+    assert rows["good1"]["status"] == "done" and exit_status(table) == 1
+    assert (out / "summary.csv").read_text().count("\n") == 3          # header and both rows

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import io as _io
 import os
 import shutil
@@ -142,7 +143,10 @@ def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_p
     try:
         if todo and client == "local":
             for spec in todo:
-                rows[spec["id"]] = process(spec)
+                try:
+                    rows[spec["id"]] = process(spec)
+                except Exception as exc:  # noqa: BLE001 - recorded like a task Dask could not run
+                    rows[spec["id"]] = _lost(spec, exc)
                 if bar is not None:
                     bar.update(1)
         elif todo:
@@ -191,18 +195,24 @@ def _run_dask(client, todo, rows, retries, bar):
         spec = futures[fut]
         try:
             rows[spec["id"]] = fut.result()
-        except Exception as exc:  # noqa: BLE001 - the task itself could not run (its worker kept dying, or a bug): record it
-            line = (str(exc).strip().splitlines() or [""])[0]
-            row = dict(asset=spec["id"], input=spec["input"], key=spec["key"], status="lost",
-                       error=f"{type(exc).__name__}: {line}"[:500])
-            asset_dir = Path(spec["asset_dir"])
-            asset_dir.mkdir(parents=True, exist_ok=True)
-            (asset_dir / MARKER).unlink(missing_ok=True)
-            write_marker(asset_dir, dict(status="lost", key=spec["key"], row=row, outputs={}))
-            rows[spec["id"]] = row
+        except Exception as exc:  # noqa: BLE001 - the task itself could not run (its worker kept dying, or a bug)
+            rows[spec["id"]] = _lost(spec, exc)
         if bar is not None:
             bar.update(1)
             bar.set_postfix_str(_counts(rows), refresh=False)
+
+
+def _lost(spec, exc):
+    """The row (and, where the folder allows, the marker) of an asset whose task could not run to its end."""
+    line = (str(exc).strip().splitlines() or [""])[0]
+    row = dict(asset=spec["id"], input=spec["input"], key=spec["key"], status="lost",
+               error=f"{type(exc).__name__}: {line}"[:500])
+    with contextlib.suppress(OSError):   # the folder itself may be what failed
+        asset_dir = Path(spec["asset_dir"])
+        asset_dir.mkdir(parents=True, exist_ok=True)
+        (asset_dir / MARKER).unlink(missing_ok=True)
+        write_marker(asset_dir, dict(status="lost", key=spec["key"], row=row, outputs={}))
+    return row
 
 
 def _client(scheduler, workers):

@@ -34,7 +34,8 @@ def _parser():
                "  uvbake scene.ply --alpha 0.5 --bake checker.png\n"
                "  uvbake scan.ply -o scan.glb --bake colors.png --texture-size 2048 --json report.json\n"
                "other commands: 'uvbake check MESH' validates a textured mesh's UVs; "
-               "'uvbake sweep MESH --alphas 0:1:0.1' studies the alpha sensitivity.",
+               "'uvbake sweep MESH --alphas 0:1:0.1' studies the alpha sensitivity; "
+               "'uvbake batch INPUTS... -o OUTDIR' unwraps many meshes on Dask.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("mesh", help="input mesh (PLY, OBJ, OFF, GLB/GLTF, STL)")
