@@ -151,3 +151,40 @@ def test_an_asset_whose_task_cannot_run_is_recorded_as_lost_and_the_rest_go_on(t
     assert rows["good0"]["status"] == "lost" and rows["good0"]["error"].startswith("FileExistsError")
     assert rows["good1"]["status"] == "done" and exit_status(table) == 1
     assert (out / "summary.csv").read_text().count("\n") == 3          # header and both rows
+
+
+def test_a_crashing_asset_is_recorded_with_its_signal(tmp_path):
+    """A native crash (here: SIGSEGV sent to the asset's process) ends that asset only."""
+    import signal
+    import threading
+    import time
+
+    import psutil
+
+    from batchkit import slow_mesh
+    from uvbake.batch import run
+
+    slow = slow_mesh(tmp_path / "in" / "slow.ply", n=250)
+    good_meshes(tmp_path / "in", 1)
+    out = tmp_path / "out"
+    result = {}
+    worker = threading.Thread(target=lambda: result.setdefault("table", run(
+        [tmp_path / "in"], out, client="local", bake=None, preview_size_px=0, timeout_per_asset_s=60)))
+    worker.start()
+    crashed = False
+    deadline = time.monotonic() + 60
+    while not crashed and time.monotonic() < deadline and worker.is_alive():
+        for p in psutil.process_iter(["cmdline"]):
+            if "uvbake.batch.zygote" in " ".join(p.info["cmdline"] or []):
+                try:
+                    if any(str(out / "assets" / "slow") in f.path for f in p.open_files()):
+                        p.send_signal(signal.SIGSEGV)
+                        crashed = True
+                except psutil.Error:
+                    pass
+        time.sleep(0.05)
+    worker.join(120)
+    assert crashed, f"never saw the process of {slow}"
+    rows = {r["asset"]: r for r in result["table"].to_pylist()}
+    assert rows["slow"]["status"] == "crashed" and "killed by SIGSEGV" in rows["slow"]["error"]
+    assert rows["good0"]["status"] == "done"
