@@ -160,8 +160,8 @@ def test_a_crashing_asset_is_recorded_with_its_signal(tmp_path):
     import time
 
     import psutil
-
     from batchkit import slow_mesh
+
     from uvbake.batch import run
 
     slow = slow_mesh(tmp_path / "in" / "slow.ply", n=250)
