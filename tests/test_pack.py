@@ -114,7 +114,7 @@ def test_shapes_scale_orientation_and_bounds(seed):
     res = pack_charts(uvs, faces, texture_size_px=512, gutter_px=3)
     s = res.scale
     assert res.texel_size_world == pytest.approx(1.0 / (s * 512), rel=1e-12)
-    assert res.n_charts == len(uvs) and res.method == "maxrects"
+    assert res.n_charts == len(uvs) and res.method in ("shape", "maxrects")
     for i, (uv, F, q) in enumerate(zip(uvs, faces, res.uv)):
         assert q.shape == uv.shape
         assert q.min() >= 0.0 and q.max() <= 1.0
@@ -127,7 +127,7 @@ def test_shapes_scale_orientation_and_bounds(seed):
         # the stored transform reproduces the UVs
         np.testing.assert_allclose(q, s * uv @ rot(res.rotation[i]).T + res.offset[i], atol=1e-12)
     d = res.to_dict()
-    assert d["method"] == "maxrects" and d["n_charts"] == len(uvs) and "uv" not in d
+    assert d["method"] == res.method and d["n_charts"] == len(uvs) and "uv" not in d
 
 
 @pytest.mark.parametrize("seed,gutter,size", [(0, 0, 256), (1, 2, 1024), (2, 4, 1024), (3, 8, 512), (4, 16, 2048)])

@@ -61,7 +61,6 @@ chart would be counted twice; validated charts have none).
 from __future__ import annotations
 
 import numbers
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,8 +69,8 @@ from uvbake.atlas.distance import min_chart_distance
 from uvbake.atlas.maxrects import _RULES, _maxrects, _orders, _rot, min_area_rect
 from uvbake.errors import InputError
 
-METHODS = ("auto", "maxrects", "xatlas", "rectpack")
-DEFAULT_METHOD = "maxrects"
+METHODS = ("auto", "shape", "maxrects", "xatlas", "rectpack")
+DEFAULT_METHOD = "shape"
 
 _EPS_PAD = 1e-9          # extra padding in atlas units, so rounding never eats into the gutter
 _REL_TOL = 1e-3          # relative precision of the scale bisection
@@ -90,9 +89,14 @@ class PackResult:
     offset : (n,2) float array            translation: ``uv[i] = scale * R(rotation[i]) @ chart_uv + offset[i]``
     efficiency : float                    sum of |triangle areas| in texels / texture_size_px**2
     texture_size_px, gutter_px : int      the atlas resolution and gutter the packing was made for
-    method : str                          the packer that was used ("maxrects", "xatlas", "rectpack")
-    time_s : float                        wall time of pack_charts
+    method : str                          the packer that was used ("shape", "maxrects", "xatlas", "rectpack")
+    time_s : float                        wall time of pack_charts (measured only: no decision reads it)
     min_gap_px : float or None            measured minimum distance between charts, texels (xatlas only)
+    width_px, height_px : int             atlas size in texels (``texture_size_px`` is the width)
+    texel_density : float                 texels per world unit, the same for every chart
+
+    For a non-square atlas ``uv = (texel_density * R(rotation[i]) @ chart_uv + offset_px) / (width, height)``
+    with ``offset_px = offset * (width, height)``: shapes are kept in texel units.
     """
 
     uv: list
@@ -106,6 +110,9 @@ class PackResult:
     method: str
     time_s: float
     min_gap_px: float | None = None
+    width_px: int = 0
+    height_px: int = 0
+    texel_density: float = 0.0
 
     @property
     def n_charts(self) -> int:
@@ -125,6 +132,9 @@ class PackResult:
             "method": self.method,
             "time_s": float(self.time_s),
             "min_gap_px": None if self.min_gap_px is None else float(self.min_gap_px),
+            "width_px": int(self.width_px),
+            "height_px": int(self.height_px),
+            "texel_density": float(self.texel_density),
         }
 
 
@@ -139,17 +149,62 @@ def _check_int_option(value, name, lo, hi, fix):
     return value
 
 
-def _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method):
-    N = _check_int_option(texture_size_px, "texture_size_px", 16, 16384,
-                          "pass an integer number of texels between 16 and 16384, e.g. 1024")
+def _check_size(texture_size_px, texel_density):
+    """(width, height) in texels, or (None, None) when the atlas grows to fit ``texel_density``."""
+    fix = "pass an integer number of texels between 16 and 16384, e.g. 1024, or a (width, height) pair"
+    if texture_size_px is None:
+        if texel_density is None:
+            raise InputError("texture_size_px=None needs texel_density (the atlas then grows to fit); "
+                             "pass texture_size_px, e.g. 1024, or texel_density")
+        return None, None
+    if isinstance(texture_size_px, (tuple, list)) and len(texture_size_px) == 2:
+        W, H = (_check_int_option(v, "texture_size_px", 16, 16384, fix) for v in texture_size_px)
+        return W, H
+    N = _check_int_option(texture_size_px, "texture_size_px", 16, 16384, fix)
+    return N, N
+
+
+def _check_gutter(gutter_px, mip_levels, W, H):
+    """The gutter in texels: ``gutter_px``, or derived from ``mip_levels`` (see mip_gutter_px)."""
+    from .atlas.shapepack import mip_gutter_px
+
+    need = None
+    if mip_levels is not None:
+        K = _check_int_option(mip_levels, "mip_levels", 0, 8, "pass how many mip levels must not bleed, 0 to 8")
+        need = mip_gutter_px(K)
+        if W is not None and (W % 2 ** K or H % 2 ** K):
+            raise InputError(f"texture_size_px={W if W == H else (W, H)} is not a multiple of 2**mip_levels="
+                             f"{2 ** K}; pass a texture size divisible by {2 ** K} or fewer mip_levels")
+    if gutter_px is None:
+        return 4 if need is None else need
     if isinstance(gutter_px, bool) or not isinstance(gutter_px, numbers.Integral):
         raise InputError(f"gutter_px={gutter_px!r} is not an integer; pass a whole number of texels >= 0, e.g. 4")
     g = int(gutter_px)
     if g < 0:
         raise InputError(f"gutter_px={g} is negative; pass a whole number of texels >= 0, e.g. 4")
-    if g >= N:
-        raise InputError(f"gutter_px={g} leaves no room in a {N}-texel atlas; "
+    if need is not None and g < need:
+        raise InputError(f"gutter_px={g} is less than the {need} texels mip_levels={mip_levels} needs; "
+                         f"leave gutter_px out (it is derived from mip_levels) or raise it")
+    if W is not None and g >= min(W, H):
+        raise InputError(f"gutter_px={g} leaves no room in a {min(W, H)}-texel atlas; "
                          f"reduce gutter_px or increase texture_size_px")
+    return g
+
+
+def _check_density(texel_density):
+    if texel_density is None:
+        return None
+    try:
+        d = float(texel_density)
+    except (TypeError, ValueError):
+        d = float("nan")
+    if isinstance(texel_density, bool) or not np.isfinite(d) or d <= 0:
+        raise InputError(f"texel_density={texel_density!r} is not a positive number; pass texels per world "
+                         f"unit, e.g. 512")
+    return d
+
+
+def _check_inputs(chart_uvs, chart_faces, method):
     if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"method={method!r} is not one of {', '.join(METHODS)}; pick one of those")
     if chart_uvs is None or len(chart_uvs) == 0:
@@ -179,7 +234,7 @@ def _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method):
                              f"pass faces that index that chart's UVs")
         uvs.append(uv)
         faces.append(F.astype(np.int64))
-    return uvs, faces, N, g
+    return uvs, faces
 
 
 # --------------------------------------------------------------------------------------- geometry
@@ -421,7 +476,8 @@ def _place_xatlas(uvs, faces, N, g, brute_force=False):
 
 # ------------------------------------------------------------------------------------------- API
 
-def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=4, rotate=True, method="auto"):
+def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None, rotate=True, method="auto",
+                texel_density=None, mip_levels=None):
     """Pack charts into one atlas in [0,1]^2 at a common scale, ``gutter_px`` texels apart.
 
     Parameters
@@ -430,46 +486,106 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=4, ro
         Per-vertex UVs of each chart in the surface's own length units (from ``uvbake.parameterize``).
     chart_faces : list of (t_i,3) int arrays
         Each chart's triangles, indexing its UVs.
-    texture_size_px : int
-        Atlas resolution in texels (16 .. 16384); the atlas is square.
-    gutter_px : int
-        Minimum distance between the triangles of any two charts, in texels (>= 0). Charts also keep
-        half a gutter from the atlas border (maxrects / rectpack).
+    texture_size_px : int, (width, height) or None
+        Atlas resolution in texels (16 .. 16384 a side); a pair asks for a non-square atlas ("shape"
+        only); None (with ``texel_density``) lets a square atlas grow until the charts fit.
+    gutter_px : int, optional
+        Minimum distance between the triangles of any two charts, in texels (>= 0); default 4, or the
+        gutter ``mip_levels`` needs. Charts also keep half a gutter from the atlas border.
     rotate : bool
-        Rotate charts (to their minimum-area rectangle, and by 90 degrees where it packs better). With
-        ``rotate=False`` the charts keep their orientation and are only translated (maxrects/rectpack).
-    method : "auto" | "maxrects" | "xatlas" | "rectpack"
-        The packer; "auto" is "maxrects" (see the module docstring for the measurements).
+        Rotate charts (never mirror). With ``rotate=False`` charts are only translated.
+    method : "auto" | "shape" | "maxrects" | "xatlas" | "rectpack"
+        "shape" packs rasterised chart shapes (uvbake.atlas.shapepack); "maxrects" their minimum-area
+        rectangles; "auto" is "shape", and for a square atlas of at most 64 charts at a free scale also
+        tries "maxrects" and keeps the denser packing.
+    texel_density : float, optional
+        Texels per world unit, fixed (one density across assets): the charts are packed at that scale,
+        the atlas grows when ``texture_size_px`` is None, else an InputError says they cannot fit.
+    mip_levels : int, optional
+        Mip levels (0..8) whose bilinear filtering must not bleed between charts; sets the gutter to
+        ``ceil(1.5 * sqrt(2) * 2**mip_levels)`` texels (see ``uvbake.atlas.shapepack.mip_gutter_px``).
 
     Returns
     -------
-    :class:`PackResult`; ``efficiency`` = sum of |triangle areas| in texels / texture_size_px**2.
+    :class:`PackResult`; ``efficiency`` = sum of |triangle areas| in texels / (width * height).
     """
+    import time
+
     t0 = time.perf_counter()
-    uvs, faces, N, g = _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method)
+    uvs, faces = _check_inputs(chart_uvs, chart_faces, method)
+    density = _check_density(texel_density)
+    W, H = _check_size(texture_size_px, density)
+    g = _check_gutter(gutter_px, mip_levels, W, H)
     if not isinstance(rotate, (bool, np.bool_)):
         raise InputError(f"rotate={rotate!r} is not a bool; pass rotate=True or rotate=False")
     used = DEFAULT_METHOD if method == "auto" else method
     extents = [np.ptp(uv, axis=0).max() for uv in uvs]
     if max(extents) == 0.0:
         raise InputError("every chart's UVs collapse to a point; nothing to pack (check the parameterization)")
-    if used == "xatlas":
-        if not rotate:
-            raise InputError("method='xatlas' always rotates charts; use rotate=True or method='maxrects'")
-        s, rotation, offset, out, gap = _place_xatlas(uvs, faces, N, g)
-    elif rotate:
-        s, rotation, offset, out, gap = _place_boxes(uvs, faces, N, g, used)
+    if used != "shape" and (density is not None or W != H):
+        raise InputError(f"method={method!r} packs square atlases at a free scale; use method='shape' for "
+                         f"texel_density or a non-square texture_size_px")
+    K = 0 if mip_levels is None else int(mip_levels)
+    if used == "shape":
+        s, rotation, offset, out, gap, W, H, density = _place_shapes(uvs, faces, W, H, g, density, rotate, K)
+        if method == "auto" and W == H and texel_density is None and len(uvs) <= 64:
+            boxes = _place_boxes(uvs, faces, W, g, "maxrects") if rotate else \
+                _place_unrotated(uvs, faces, W, g, "maxrects")
+            if boxes[0] > s * (1 + 1e-12):
+                s, rotation, offset, out, gap = boxes
+                used, density = "maxrects", boxes[0] * W
     else:
-        s, rotation, offset, out, gap = _place_unrotated(uvs, faces, N, g, used)
+        N = W
+        if used == "xatlas":
+            if not rotate:
+                raise InputError("method='xatlas' always rotates charts; use rotate=True or method='maxrects'")
+            s, rotation, offset, out, gap = _place_xatlas(uvs, faces, N, g)
+        elif rotate:
+            s, rotation, offset, out, gap = _place_boxes(uvs, faces, N, g, used)
+        else:
+            s, rotation, offset, out, gap = _place_unrotated(uvs, faces, N, g, used)
+        density = s * N
     # a chart that cannot fit: the whole atlas would give the largest chart less than one texel
-    if s * max(extents) * N < 1.0:
-        raise InputError(f"the charts cannot fit a {N}-texel atlas with gutter_px={g}: the largest chart would be "
-                         f"under one texel; reduce gutter_px or increase texture_size_px")
+    if density * max(extents) < 1.0:
+        raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the largest chart "
+                         f"would be under one texel; reduce gutter_px or increase texture_size_px")
     area = sum(np.abs(triangle_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
-    eff = float(s * s * area)
-    return PackResult(uv=out, scale=float(s), texel_size_world=float(1.0 / (s * N)), rotation=rotation,
-                      offset=offset, efficiency=eff, texture_size_px=N, gutter_px=g, method=used,
-                      time_s=time.perf_counter() - t0, min_gap_px=gap)
+    eff = float(density * density * area / (W * H))
+    return PackResult(uv=out, scale=float(density / W), texel_size_world=float(1.0 / density), rotation=rotation,
+                      offset=offset, efficiency=eff, texture_size_px=W, gutter_px=g, method=used,
+                      time_s=time.perf_counter() - t0, min_gap_px=gap, width_px=W, height_px=H,
+                      texel_density=float(density))
+
+
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels):
+    """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing."""
+    from .atlas.shapepack import ShapePacker, fit_scale, grow_square
+
+    angles = [np.array([min_area_rect(uv)[0] if rotate else 0.0]) for uv in uvs]
+    packer = ShapePacker(uvs, faces, angles, quarter_turns=bool(rotate))
+    if density is None:
+        p = fit_scale(packer, W, H, g)
+        if p is None:
+            raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
+                             f"take the room; reduce gutter_px or increase texture_size_px")
+    elif W is None:
+        W, p = grow_square(packer, g, density, quantum=max(4, 2 ** mip_levels))
+        if W is None:
+            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side ({p} at least); "
+                             f"lower texel_density")
+        H = W
+    else:
+        p = packer.pack(density, W, None, g)
+        if p is None or p.height_used > H:
+            need = "a wider atlas" if p is None else f"about {W}x{p.height_used} texels"
+            raise InputError(f"the charts cannot fit texture_size_px={W if W == H else (W, H)} at "
+                             f"texel_density={density:g} (they need {need}); raise texture_size_px, lower "
+                             f"texel_density, or leave texture_size_px out to let the atlas grow")
+    size = np.array([W, H], dtype=np.float64)
+    out = []
+    for i, uv in enumerate(uvs):              # one iteration per chart
+        out.append((p.density * (uv @ _rot(p.rotation[i]).T) + p.offset[i]) / size)
+    return p.density / W, p.rotation, p.offset / size, out, None, W, H, p.density
 
 
 def _place_unrotated(uvs, faces, N, g, method):
