@@ -30,8 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 
 _EPS = 1e-7          # texels: every touch test is widened by this, so rounding never drops a touched texel
-_CHUNK = 16          # candidate rows whose first run is tested together
-_BATCH = 512         # candidate positions whose other runs are tested together
+_CHUNK = 16          # candidate rows tested together
+_DENSE = 1           # runs tested on every position of a chunk
+_BATCH = 512         # surviving positions whose other runs are tested together
 
 
 # ------------------------------------------------------------------------------------ rasterising
@@ -212,8 +213,9 @@ class _Atlas:
         self.run = np.vstack([self.run, run])
         self.rowmax = np.concatenate([self.rowmax, run.max(axis=1)])
 
-    def find(self, runs, h, w):
-        """Lowest, then leftmost, (x, y) where a footprint with ``runs`` fits; None if nowhere."""
+    def find(self, runs, h, w, top_bound=None):
+        """Lowest, then leftmost, (x, y) where a footprint with ``runs`` fits; None if nowhere, or if its
+        top edge ``y + h`` would exceed ``top_bound`` (a rotation already found does better)."""
         dy, a, L = runs
         nx = self.w - w + 1
         if nx <= 0 or w > self.w - 2 * self.m:
@@ -223,6 +225,8 @@ class _Atlas:
         ny = self.top + 1                     # every row above `top` is free: y = top always fits
         if self.limit:
             ny = min(ny, self.limit - self.m - h + 1)
+        if top_bound is not None:
+            ny = min(ny, top_bound - h + 1)
         if ny <= self.m:
             return None
         # rows where every footprint row finds a long enough free run somewhere
@@ -237,16 +241,23 @@ class _Atlas:
         order = np.lexsort((a, spread))
         dy, a, L = dy[order], a[order], L[order]
         xs = np.arange(nx)
-        for k0 in range(0, len(ys), _CHUNK):
-            yc = ys[k0:k0 + _CHUNK]
-            yi, xi = np.nonzero(self.run[yc[:, None] + dy[0], xs[None, :] + a[0]] >= L[0])   # row-major
-            for b0 in range(0, len(yi), _BATCH):      # candidates in (y, x) order, a batch at a time
+        dense = min(len(dy), _DENSE)
+        k0, chunk = 0, _CHUNK
+        while k0 < len(ys):                   # candidate rows, bottom up, in growing chunks
+            yc = ys[k0:k0 + chunk]
+            k0 = k0 + chunk
+            ok = self.run[yc[:, None] + dy[0], xs[None, :] + a[0]] >= L[0]
+            for k in range(1, dense):         # a few spread runs on every position of the chunk
+                ok &= self.run[yc[:, None] + dy[k], xs[None, :] + a[k]] >= L[k]
+            yi, xi = np.nonzero(ok)           # row-major: bottom-left first
+            for b0 in range(0, len(yi), _BATCH):      # the other runs on the survivors, a batch at a time
                 cy, cx = yc[yi[b0:b0 + _BATCH]], xi[b0:b0 + _BATCH]
-                k, step = 1, 4
+                k, step = dense, 4
                 while k < len(dy) and len(cy):        # runs in growing blocks; candidates shrink
-                    ok = (self.run[cy[:, None] + dy[None, k:k + step], cx[:, None] + a[None, k:k + step]]
-                          >= L[None, k:k + step]).all(axis=1)
-                    cy, cx = cy[ok], cx[ok]
+                    sel = slice(k, k + step)
+                    keep = (self.run[cy[:, None] + dy[None, sel], cx[:, None] + a[None, sel]]
+                            >= L[None, sel]).all(axis=1)
+                    cy, cx = cy[keep], cx[keep]
                     k, step = k + step, step * 4
                 if len(cy):
                     return int(cx[0]), int(cy[0])
@@ -279,6 +290,7 @@ class ShapePacking:
     rotation: np.ndarray
     offset: np.ndarray
     height_used: int
+    complete: bool = True
 
 
 class ShapePacker:
@@ -321,20 +333,23 @@ class ShapePacker:
                 fp = np.ascontiguousarray(np.rot90(fp, -1))
                 t = np.array([h - t[1], t[0]])
 
-    def pack(self, density, width, height, gutter_px):
+    def pack(self, density, width, height, gutter_px, *, give_up_above=None):
         """Bottom-left fill of a ``width``-texel strip (``height`` rows at most, None: unbounded).
 
-        Returns a ShapePacking, or None when some chart does not fit.
+        Returns a ShapePacking, or None when some chart does not fit. With ``give_up_above`` the packing
+        stops once it needs more rows: it is returned with ``complete=False`` and ``height_used``
+        extrapolated by the chart area still to place (at a fixed width, height grows with area).
         """
         g = int(gutter_px)
         m = (g + 1) // 2
         atlas = _Atlas(width, height, m)
         n = len(self.uvs)
         rotation, offset = np.zeros(n), np.zeros((n, 2))
+        placed = 0.0
         for i in self.order:                      # one iteration per chart; the search inside is numpy
             best = None
             for r, (fp, theta, t) in enumerate(self._candidates(i, density)):
-                pos = atlas.find(_runs(fp), *fp.shape)
+                pos = atlas.find(_runs(fp), *fp.shape, top_bound=None if best is None else best[0][0])
                 if pos is None:
                     continue
                 key = (pos[1] + fp.shape[0], pos[1], pos[0], r)
@@ -346,6 +361,11 @@ class ShapePacker:
             atlas.place(_dilate(fp, g), key[2], key[1], g, key[1] + fp.shape[0] + g)
             rotation[i] = float(np.arctan2(np.sin(theta), np.cos(theta)))
             offset[i] = off
+            placed += self.area[i]
+            if give_up_above is not None and atlas.top - g + m > give_up_above:
+                used = (atlas.top - g + m) * self.area.sum() / placed
+                return ShapePacking(density=float(density), rotation=rotation, offset=offset,
+                                    height_used=int(np.ceil(used)), complete=False)
         return ShapePacking(density=float(density), rotation=rotation, offset=offset,
                             height_used=atlas.top - g + m)
 
@@ -356,8 +376,8 @@ def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
     for _ in range(max_packs):
         if lo is not None and hi is not None and hi <= lo * (1 + rel_tol):
             break
-        p = packer.pack(s, width, None, g)
-        if p is not None and p.height_used <= height:
+        p = packer.pack(s, width, None, g, give_up_above=height)
+        if p is not None and p.complete and p.height_used <= height:
             lo, lo_pack = s, p
         else:
             hi = s
