@@ -200,16 +200,19 @@ class _Atlas:
         self.run = np.zeros((0, width), np.int32)
         self.rowmax = np.zeros(0, np.int32)
         self.top = margin                # first row above every placed chart's blocked texels
-        self._grow(max(64, min(height, 4 * width) if height else 2 * width))
+        self._grow(64)
 
     def _grow(self, rows):
+        """Append ``rows`` free rows (their borders blocked); a free row's run table is one template."""
         add = np.zeros((rows, self.w), bool)
         add[:, :self.m] = True
         add[:, self.w - self.m:] = True
-        if len(self.blocked) == 0:
+        tmpl = _free_runs(add[:1])
+        run = np.repeat(tmpl, rows, axis=0)
+        if len(self.blocked) == 0:                 # the bottom margin
             add[:self.m] = True
+            run[:self.m] = 0
         self.blocked = np.vstack([self.blocked, add])
-        run = _free_runs(add)
         self.run = np.vstack([self.run, run])
         self.rowmax = np.concatenate([self.rowmax, run.max(axis=1)])
 
@@ -221,7 +224,7 @@ class _Atlas:
         if nx <= 0 or w > self.w - 2 * self.m:
             return None
         if self.top + h + 1 > len(self.blocked):
-            self._grow(max(self.top + h + 1 - len(self.blocked), len(self.blocked)))
+            self._grow(max(self.top + h + 1 - len(self.blocked), len(self.blocked)))   # doubling
         ny = self.top + 1                     # every row above `top` is free: y = top always fits
         if self.limit:
             ny = min(ny, self.limit - self.m - h + 1)
@@ -267,6 +270,8 @@ class _Atlas:
         """Block the dilated footprint whose undilated corner sits at (x, y); update the run tables."""
         H, W = fp_dilated.shape
         y0, x0 = y - g, x - g
+        if y0 + H > len(self.blocked):             # rows for the whole gutter above the chart first
+            self._grow(max(y0 + H - len(self.blocked), len(self.blocked)))
         cy0, cx0 = max(y0, 0), max(x0, 0)
         cy1, cx1 = min(y0 + H, len(self.blocked)), min(x0 + W, self.w)
         self.blocked[cy0:cy1, cx0:cx1] |= fp_dilated[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
@@ -391,7 +396,7 @@ def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
     return lo, lo_pack
 
 
-def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, fine_packs=3):
+def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, fine_packs=2):
     """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
 
     Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
