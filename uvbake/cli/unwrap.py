@@ -62,8 +62,16 @@ def _parser():
                    help="the paper's formulation as is: no chart splitting (flips and overlaps are reported, "
                         "not removed) and no continuation from invalid starts")
     g = p.add_argument_group("atlas and texture")
-    g.add_argument("--texture-size", type=int, default=1024, metavar="PX", help="texture side in texels (default 1024)")
-    g.add_argument("--gutter", type=int, default=4, metavar="PX", help="gap between charts in texels (default 4)")
+    g.add_argument("--texture-size", type=int, default=None, metavar="PX",
+                   help="texture side in texels (default 1024; with --texel-density the texture grows to fit)")
+    g.add_argument("--gutter", type=int, default=None, metavar="PX",
+                   help="gap between charts in texels (default 4, or what --mip-levels needs)")
+    g.add_argument("--texel-density", type=float, default=None, metavar="PX_PER_UNIT",
+                   help="fixed texels per world unit, the same across assets (the texture grows to fit, or with "
+                        "--texture-size the command says it cannot fit)")
+    g.add_argument("--mip-levels", type=int, default=None, metavar="K",
+                   help="keep charts from bleeding under bilinear filtering down to mip level K: gutter "
+                        "ceil(1.5*sqrt(2)*2^K) texels (3, 5, 9, 17 for K = 0..3)")
     g.add_argument("--bake", metavar="PNG", help="bake a texture to this PNG: a checkerboard, or the vertex "
                                                  "colours when the name contains 'color'/'colour'")
     g.add_argument("--bake-mode", choices=["checker", "vertex-colors"], help="what --bake bakes (overrides the name)")
@@ -127,7 +135,9 @@ def _unwrap_command(args):
     t0 = time.perf_counter()
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
-    _check_texture(args.texture_size, args.gutter)
+    if args.texture_size is None and args.texel_density is None:
+        args.texture_size = 1024
+    _check_texture(args.texture_size, args.gutter, args.texel_density)
     out = output_path(args.mesh, args.output)
     if out.suffix.lower() not in (".obj", ".glb"):
         raise InputError(f"output {out} must end in .obj or .glb")
@@ -166,7 +176,8 @@ def _unwrap_command(args):
 
     result = unwrap(args.mesh, alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol,
                     max_iter=args.max_iter, seed=args.seed, texture_size_px=args.texture_size,
-                    gutter_px=args.gutter, bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
+                    gutter_px=args.gutter, texel_density=args.texel_density, mip_levels=args.mip_levels,
+                    bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
                     guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
                     progress=on_stage, callback=on_iteration)
     if args.cross_check:
@@ -200,7 +211,8 @@ def _unwrap_command(args):
         atlas = rep["atlas"]
         print(f"uvbake: {rep['triangles']} triangles -> {rep['charts_final']} chart(s) "
               f"({rep['charts_input']} before cuts and splits), alpha {args.alpha}; "
-              f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}%, "
+              f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}% "
+              f"of {atlas['texture_size_px']} px at {atlas.get('texel_density', 0):.4g} px/unit, "
               f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written)}")
         for w in (rep.get("repair") or {}).get("warnings", []):
             print(f"uvbake: warning: {w}", file=sys.stderr)
