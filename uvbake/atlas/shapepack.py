@@ -31,7 +31,6 @@ import numpy as np
 
 _EPS = 1e-7          # texels: every touch test is widened by this, so rounding never drops a touched texel
 _CHUNK = 16          # candidate rows tested together
-_DENSE = 1           # runs tested on every position of a chunk
 _BATCH = 512         # surviving positions whose other runs are tested together
 
 
@@ -243,25 +242,28 @@ class _Atlas:
         spread[np.argmax(L)] = -1.0
         order = np.lexsort((a, spread))
         dy, a, L = dy[order], a[order], L[order]
-        xs = np.arange(nx)
-        dense = min(len(dy), _DENSE)
-        k0, chunk = 0, _CHUNK
-        while k0 < len(ys):                   # candidate rows, bottom up, in growing chunks
-            yc = ys[k0:k0 + chunk]
-            k0 = k0 + chunk
-            ok = self.run[yc[:, None] + dy[0], xs[None, :] + a[0]] >= L[0]
-            for k in range(1, dense):         # a few spread runs on every position of the chunk
-                ok &= self.run[yc[:, None] + dy[k], xs[None, :] + a[k]] >= L[k]
+        k0 = 0
+        while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
+            yc = ys[k0:k0 + _CHUNK]
+            k0 += _CHUNK
+            # dense phase: runs tested on every position of the chunk (row gather + column slice)
+            ok = self.run[yc + dy[0], a[0]:a[0] + nx] >= L[0]
+            k = 1
+            while k < len(dy):
+                ok &= self.run[yc + dy[k], a[k]:a[k] + nx] >= L[k]
+                k += 1
+                if k % 4 == 0 and np.count_nonzero(ok) < nx:
+                    break
             yi, xi = np.nonzero(ok)           # row-major: bottom-left first
-            for b0 in range(0, len(yi), _BATCH):      # the other runs on the survivors, a batch at a time
+            for b0 in range(0, len(yi), _BATCH):      # sparse phase: the other runs on the survivors
                 cy, cx = yc[yi[b0:b0 + _BATCH]], xi[b0:b0 + _BATCH]
-                k, step = dense, 4
-                while k < len(dy) and len(cy):        # runs in growing blocks; candidates shrink
-                    sel = slice(k, k + step)
+                j, step = k, 4
+                while j < len(dy) and len(cy):        # runs in growing blocks; candidates shrink
+                    sel = slice(j, j + step)
                     keep = (self.run[cy[:, None] + dy[None, sel], cx[:, None] + a[None, sel]]
                             >= L[None, sel]).all(axis=1)
                     cy, cx = cy[keep], cx[keep]
-                    k, step = k + step, step * 4
+                    j, step = j + step, step * 4
                 if len(cy):
                     return int(cx[0]), int(cy[0])
         return None
