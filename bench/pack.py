@@ -8,8 +8,8 @@ Chart sets (bench/pack_charts.py, cached): uvbake's own final charts on every me
 sample_scenes/, xatlas's charts (``xatlas.parametrize`` split into islands) on the same meshes, and a long
 twisted ribbon (one chart). Packers, each on the same charts with the same gutter:
 
-- ``uvbake``: ``pack_charts(method="auto")`` in a 1024 x 1024 atlas (for the ribbon also 4096 x 256,
-  the same texel count, as a non-square atlas);
+- ``uvbake``: ``pack_charts(method="auto")`` in a 1024 x 1024 atlas (for the ribbon also the best of
+  2048 x 512, 4096 x 256, 8192 x 128 and 16384 x 64, the same texel count, as non-square atlases);
 - ``xatlas``: ``xatlas.Atlas.add_uv_mesh`` + ``generate`` with ``PackOptions(resolution=1024,
   padding=ceil((gutter-1)/2), rotate_charts=True)`` and texels_per_unit estimated by xatlas (one
   packing). xatlas returns a W x H atlas cropped to its charts, often far from square (2018 x 1048 on
@@ -17,7 +17,8 @@ twisted ribbon (one chart). Packers, each on the same charts with the same gutte
   its own W x H figure is given in brackets;
 - ``blender``: ``bpy.ops.uv.pack_islands(shape_method='CONCAVE', rotate=True, margin_method='FRACTION',
   margin=gutter / 2048)`` (Blender's margin is kept around every island, so two islands end up two
-  margins apart); run in the bpy venv as a subprocess, time of the operator call only.
+  margins apart); run in the bpy venv as a subprocess, time of the operator call only; its result is
+  cached in bench/.cache/pack/ (Blender's packing does not change between runs of this benchmark).
 
 Efficiency = sum of |triangle areas| in texels / atlas texels. Every result's exact minimum distance
 between charts is measured (``min gap``, texels); a packing whose gap is under the gutter is flagged.
@@ -41,7 +42,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "bench"))
 
-from pack_charts import chart_sets  # noqa: E402
+from pack_charts import CACHE, chart_sets  # noqa: E402
 
 from uvbake.atlas.distance import min_chart_distance  # noqa: E402
 from uvbake.atlas.pack import pack_charts, triangle_areas  # noqa: E402
@@ -109,7 +110,13 @@ def run_xatlas(uvs, faces, N, g):
                 atlas=f"{W}x{H}", note=note)
 
 
-def run_blender(uvs, faces, N, g, bpy_python):
+def run_blender(uvs, faces, N, g, bpy_python, cache=None):
+    """Blender's packing; its corner UVs are cached per chart set, size and gutter (it takes up to a minute)."""
+    if cache is not None and cache.exists():
+        z = np.load(cache)
+        out = per_vertex(z["corner_uv"], faces)
+        return dict(eff=area_px(out, faces, N, N) / (N * N), time=float(z["time_s"]), gap=gap_px(out, faces, N, N),
+                    atlas=f"{N}x{N}", note="")
     with tempfile.TemporaryDirectory() as d:
         src, dst = Path(d) / "in.npz", Path(d) / "out.npz"
         np.savez(src, n=len(uvs), margin=g / (2 * N), **{f"uv{i}": u for i, u in enumerate(uvs)},
@@ -120,6 +127,8 @@ def run_blender(uvs, faces, N, g, bpy_python):
             return dict(eff=float("nan"), time=float("nan"), gap=float("nan"), atlas="", note="failed: "
                         + (p.stderr.strip().splitlines() or ["?"])[-1][:60])
         z = np.load(dst)
+        if cache is not None:
+            np.savez(cache, corner_uv=z["corner_uv"], time_s=z["time_s"])
         out = per_vertex(z["corner_uv"], faces)
         return dict(eff=area_px(out, faces, N, N) / (N * N), time=float(z["time_s"]), gap=gap_px(out, faces, N, N),
                     atlas=f"{N}x{N}", note="")
@@ -146,12 +155,14 @@ def main(argv=None):
         if not mesh:
             src, mesh = "-", name
         cells = {"uvbake": run_uvbake(uvs, faces, N, g)}
-        if mesh == "ribbon":
-            cells["uvbake-nonsquare"] = run_uvbake(uvs, faces, N, g, size=(4 * N, N // 4))
+        if mesh == "ribbon":            # non-square atlases of the same texel count, the best one
+            tries = [run_uvbake(uvs, faces, N, g, size=(N << k, N >> k)) for k in (1, 2, 3, 4)]
+            cells["uvbake-nonsquare"] = max(tries, key=lambda c: c["eff"])
         if not args.no_xatlas:
             cells["xatlas"] = run_xatlas(uvs, faces, N, g)
         if blender:
-            cells["blender"] = run_blender(uvs, faces, N, g, args.bpy_python)
+            key = f"blender__{name.replace(':', '__')}__{N}_{g}.npz"
+            cells["blender"] = run_blender(uvs, faces, N, g, args.bpy_python, cache=CACHE / key)
 
         def fmt(c):
             if c is None:

@@ -403,7 +403,7 @@ def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, 
 
     Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
     ``height`` rows. The search runs first on a raster ``c`` times coarser (``c`` a power of two making
-    the long side about ``coarse_px``; gutter ``ceil(gutter_px / c)`` coarse texels): a coarse packing
+    the long side about ``coarse_px``, the short side at least 32; gutter ``ceil(gutter_px / c)`` coarse texels): a coarse packing
     scaled by ``c`` is a valid full-resolution packing (coarse footprints cover the fine ones, gutters
     and margins only grow), so it is the fallback; then at most ``fine_packs`` full-resolution trials
     look for a larger density. Returns a ShapePacking at full resolution, or None if nothing fits.
@@ -411,7 +411,8 @@ def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, 
     g = int(gutter_px)
     area = float(packer.area.sum())
     c = 1
-    while max(width, height) // (2 * c) >= coarse_px and width % (2 * c) == 0 and height % (2 * c) == 0:
+    while (max(width, height) // (2 * c) >= coarse_px and min(width, height) // (2 * c) >= 32
+           and width % (2 * c) == 0 and height % (2 * c) == 0):
         c *= 2
     top = np.sqrt(width * height / area) if area > 0 else 1.0
     cw, ch, cg = width // c, height // c, -(-g // c)
