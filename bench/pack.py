@@ -9,7 +9,8 @@ sample_scenes/, xatlas's charts (``xatlas.parametrize`` split into islands) on t
 twisted ribbon (one chart). Packers, each on the same charts with the same gutter:
 
 - ``uvbake``: ``pack_charts(method="auto")`` in a 1024 x 1024 atlas (for the ribbon also the best of
-  2048 x 512, 4096 x 256, 8192 x 128 and 16384 x 64, the same texel count, as non-square atlases);
+  2048 x 512, 4096 x 256, 8192 x 128 and 16384 x 64, the same texel count, as non-square atlases, and
+  a growing atlas of free aspect at the texel density of 1024^2 texels for the chart's area);
 - ``xatlas``: ``xatlas.Atlas.add_uv_mesh`` + ``generate`` with ``PackOptions(resolution=1024,
   padding=ceil((gutter-1)/2), rotate_charts=True)`` and texels_per_unit estimated by xatlas (one
   packing). xatlas returns a W x H atlas cropped to its charts, often far from square (2018 x 1048 on
@@ -72,9 +73,12 @@ def per_vertex(corner, faces):
     return out
 
 
-def run_uvbake(uvs, faces, N, g, size=None):
+def run_uvbake(uvs, faces, N, g, size=0, density=None):
     t0 = time.perf_counter()
-    r = pack_charts(uvs, faces, texture_size_px=size or N, gutter_px=g)
+    if density is None:
+        r = pack_charts(uvs, faces, texture_size_px=size or N, gutter_px=g)
+    else:           # a growing atlas of free aspect at a fixed texel density
+        r = pack_charts(uvs, faces, texture_size_px=None, gutter_px=g, texel_density=density, aspect="free")
     dt = time.perf_counter() - t0
     W, H = r.width_px, r.height_px
     return dict(eff=r.efficiency, time=dt, gap=gap_px(r.uv, faces, W, H), atlas=f"{W}x{H}",
@@ -158,6 +162,8 @@ def main(argv=None):
         if mesh == "ribbon":            # non-square atlases of the same texel count, the best one
             tries = [run_uvbake(uvs, faces, N, g, size=(N << k, N >> k)) for k in (1, 2, 3, 4)]
             cells["uvbake-nonsquare"] = max(tries, key=lambda c: c["eff"])
+            world = sum(np.abs(triangle_areas(u, f)).sum() for u, f in zip(uvs, faces))
+            cells["uvbake-free"] = run_uvbake(uvs, faces, N, g, size=None, density=N / np.sqrt(world))
         if not args.no_xatlas:
             cells["xatlas"] = run_xatlas(uvs, faces, N, g)
         if blender:
@@ -179,6 +185,8 @@ def main(argv=None):
         if "uvbake-nonsquare" in cells:
             v = cells["uvbake-nonsquare"]
             desc += f"; {v['atlas']}: {fmt(v)}"
+            v = cells["uvbake-free"]
+            desc += f"; growing, free aspect, {v['density']:.4g} px/unit: {v['atlas']}: {fmt(v)}"
         print(f"| {src} | {mesh} | {len(uvs)} | {fmt(u)} | {fmt(cells.get('xatlas'))} | {fmt(cells.get('blender'))} "
               f"| {desc} | {share} |", flush=True)
         rows.append((name, len(uvs), cells))

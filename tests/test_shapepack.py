@@ -242,3 +242,17 @@ def test_bad_options_name_the_option(kwargs, match):
     with pytest.raises(InputError, match=match) as e:
         pack_charts(uvs, faces, **kwargs)
     assert "\n" not in str(e.value)
+
+
+def test_ribbon_packs_above_60_percent_in_a_growing_free_aspect_atlas():
+    uv, F = ribbon()
+    world = np.abs(signed_areas(uv, F)).sum()
+    d = np.sqrt(512 ** 2 / world)                 # about a quarter megatexel of chart
+    sq = pack_charts([uv], [F], texture_size_px=None, texel_density=d, gutter_px=4)
+    res = pack_charts([uv], [F], texture_size_px=None, texel_density=d, gutter_px=4, aspect="free")
+    assert sq.efficiency < 0.1 and sq.width_px == sq.height_px
+    assert res.width_px > 8 * res.height_px       # a long atlas for a long chart
+    texels = np.abs(signed_areas(res.uv[0] * [res.width_px, res.height_px], F)).sum()
+    assert texels / (res.width_px * res.height_px) == pytest.approx(res.efficiency, rel=1e-9)
+    assert np.sqrt(texels / world) == pytest.approx(d, rel=0.01)
+    assert res.efficiency > 0.60

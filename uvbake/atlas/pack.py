@@ -477,7 +477,7 @@ def _place_xatlas(uvs, faces, N, g, brute_force=False):
 # ------------------------------------------------------------------------------------------- API
 
 def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None, rotate=True, method="auto",
-                texel_density=None, mip_levels=None):
+                texel_density=None, mip_levels=None, aspect="square"):
     """Pack charts into one atlas in [0,1]^2 at a common scale, ``gutter_px`` texels apart.
 
     Parameters
@@ -504,6 +504,9 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
     mip_levels : int, optional
         Mip levels (0..8) whose bilinear filtering must not bleed between charts; sets the gutter to
         ``ceil(1.5 * sqrt(2) * 2**mip_levels)`` texels (see ``uvbake.atlas.shapepack.mip_gutter_px``).
+    aspect : "square" | "free"
+        Shape of an atlas that grows (``texture_size_px=None``): square, or the rectangle of fewest
+        texels (a long ribbon gets a long atlas).
 
     Returns
     -------
@@ -526,8 +529,13 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
         raise InputError(f"method={method!r} packs square atlases at a free scale; use method='shape' for "
                          f"texel_density or a non-square texture_size_px")
     K = 0 if mip_levels is None else int(mip_levels)
+    if aspect not in ("square", "free"):
+        raise InputError(f"aspect={aspect!r} is not 'square' or 'free'; pick one of those")
+    if aspect == "free" and W is not None:
+        raise InputError("aspect='free' sizes a growing atlas; pass texture_size_px=None with texel_density")
     if used == "shape":
-        s, rotation, offset, out, gap, W, H, density = _place_shapes(uvs, faces, W, H, g, density, rotate, K)
+        s, rotation, offset, out, gap, W, H, density = _place_shapes(uvs, faces, W, H, g, density, rotate, K,
+                                                                     aspect)
         if method == "auto" and W == H and texel_density is None and len(uvs) <= 64:
             boxes = _place_boxes(uvs, faces, W, g, "maxrects") if rotate else \
                 _place_unrotated(uvs, faces, W, g, "maxrects")
@@ -557,14 +565,16 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
                       texel_density=float(density))
 
 
-def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels):
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing."""
-    from .atlas.shapepack import ShapePacker, fit_scale, grow_square
+    from .atlas.shapepack import ShapePacker, fit_scale, grow_rectangle, grow_square
 
     # each chart at its minimum-area-rectangle angle (+ quarter turns); the six biggest also at 45 degrees
-    # from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4 on sphere_cap)
+    # from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4 on sphere_cap),
+    # unless they are longer than 3:1 (a diagonal long chart rasterises a mostly empty square)
     rects = np.array([min_area_rect(uv) for uv in uvs]) if rotate else np.zeros((len(uvs), 3))
     big = set(np.lexsort((np.arange(len(uvs)), -rects[:, 1] * rects[:, 2]))[:6].tolist()) if rotate else set()
+    big = {i for i in big if rects[i, 1] <= 3 * rects[i, 2]}
     angles = [np.array([t, t + np.pi / 4] if i in big else [t]) for i, t in enumerate(rects[:, 0])]
     packer = ShapePacker(uvs, faces, angles, quarter_turns=bool(rotate))
     if density is None:
@@ -573,6 +583,11 @@ def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels):
         if p is None:
             raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
                              f"take the room; reduce gutter_px or increase texture_size_px")
+    elif W is None and aspect == "free":
+        W, H, p = grow_rectangle(packer, g, density, quantum=max(4, 2 ** mip_levels))
+        if W is None:
+            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side; lower "
+                             f"texel_density")
     elif W is None:
         W, p = grow_square(packer, g, density, quantum=max(4, 2 ** mip_levels))
         if W is None:

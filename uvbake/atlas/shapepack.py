@@ -464,6 +464,31 @@ def grow_square(packer, gutter_px, density, *, quantum=4, max_side=16384):
         p = packer.pack(density, side, None, g)
         if p is not None and p.height_used <= side:
             return side, p
-        need = side + quantum if p is None else max(side + quantum, np.sqrt(side * p.height_used))
+        need = 1.25 * side if p is None else max(side + quantum, np.sqrt(side * p.height_used))   # None: too narrow
         side = int(quantum * np.ceil(need / quantum))
     return None, side
+
+
+def grow_rectangle(packer, gutter_px, density, *, quantum=4, max_side=16384):
+    """Smallest-area ``width x height`` atlas (sides multiples of ``quantum``) holding every chart at
+    ``density``: strips of widths ``sqrt(area) * 2^k`` (k = 0..6, at most ``max_side``) are packed (a
+    strip stops once it needs more texels than the best so far) and the one needing the fewest texels
+    wins (ties: the squarer). Returns (width, height, ShapePacking) or (None, None, None) when no strip
+    fits within ``max_side``.
+    """
+    g = int(gutter_px)
+    root = np.sqrt(float(packer.area.sum()) * density * density)
+    widths = sorted({int(quantum * np.ceil(min(max(root * 2.0 ** k, 64), max_side) / quantum)) for k in range(7)})
+    best = None
+    for w in widths:                          # at most seven strips
+        limit = max_side if best is None else min(max_side, best[0][0] // w)
+        p = packer.pack(density, w, None, g, give_up_above=limit)
+        if p is None or not p.complete:
+            continue
+        h = int(quantum * np.ceil(p.height_used / quantum))
+        if h > max_side:
+            continue
+        key = (w * h, abs(np.log(w / h)))
+        if best is None or key < best[0]:
+            best = (key, w, h, p)
+    return (None, None, None) if best is None else best[1:]
