@@ -416,7 +416,8 @@ def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, 
         c *= 2
     top = np.sqrt(width * height / area) if area > 0 else 1.0
     cw, ch, cg = width // c, height // c, -(-g // c)
-    lo, p = _search(packer, cw, ch, cg, None, None, top / c, 0.75 * top / c, 16, rel_tol)
+    coarse_tol = rel_tol if c == 1 or fine_packs == 0 else 2.5 * rel_tol      # the fine trials refine it
+    lo, p = _search(packer, cw, ch, cg, None, None, top / c, 0.75 * top / c, 16, coarse_tol)
     if lo is None:                                 # halve until something fits (tiny atlas, big gutter)
         s = 0.75 * top / c
         for _ in range(30):
