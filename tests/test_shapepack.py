@@ -12,7 +12,7 @@ import pytest
 from test_pack import edges_cross, grid_chart, min_gap, signed_areas, star_chart
 from uvbake.atlas.shapepack import footprint, boundary_halfedges, gutter_element, mip_gutter_px
 from uvbake.errors import InputError
-from uvbake.pack import pack_charts
+from uvbake.atlas.pack import pack_charts
 
 
 def holed_chart(n=24, r0=0.4, r1=1.0):

@@ -166,7 +166,7 @@ def _check_size(texture_size_px, texel_density):
 
 def _check_gutter(gutter_px, mip_levels, W, H):
     """The gutter in texels: ``gutter_px``, or derived from ``mip_levels`` (see mip_gutter_px)."""
-    from .atlas.shapepack import mip_gutter_px
+    from uvbake.atlas.shapepack import mip_gutter_px
 
     need = None
     if mip_levels is not None:
@@ -567,7 +567,7 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
 
 def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing."""
-    from .atlas.shapepack import ShapePacker, fit_scale, grow_rectangle, grow_square
+    from uvbake.atlas.shapepack import ShapePacker, fit_scale, grow_rectangle, grow_square
 
     # each chart at its minimum-area-rectangle angle (+ quarter turns); the six biggest also at 45 degrees
     # from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4 on sphere_cap),
