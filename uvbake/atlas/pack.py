@@ -1,58 +1,38 @@
 """Pack flattened charts into one texture atlas in [0,1]^2, with a gutter in texels.
 
-Every chart keeps its shape and its true scale: one scale factor ``s`` (atlas units per world unit) is
-shared by all charts, so texel density is uniform; each chart is only rotated (never mirrored) and
-translated. ``s`` is the largest value (found by bisection, to 0.1 %) at which the packer fits all
-charts; the gutter is fixed in texels while the charts scale.
+Every chart keeps its shape and its true scale: one texel density (texels per world unit) is shared by
+all charts; each chart is only rotated (never mirrored) and translated. The density is the largest at
+which the packer fits all charts (a bisection), or the one the caller fixes (``texel_density``, the same
+across assets; the atlas then grows, or the call says the charts cannot fit). The gutter is fixed in
+texels while the charts scale; ``mip_levels`` derives it (``uvbake.atlas.shapepack.mip_gutter_px``).
 
-Method ``"maxrects"`` (uvbake's own): each chart is rotated to its minimum-area bounding rectangle
-(rotating calipers on the convex hull, vectorised over hull edges), the rectangle is grown by the
-gutter (half a gutter on every side), and the padded rectangles are packed into the unit square by
-MaxRects (Jylänki 2010) with 90-degree turns allowed, trying several placement rules (best short side,
-best long side, best area, bottom-left, contact point) and several orders; the best scale wins. Boxes
-that do not overlap keep any two charts at least ``gutter_px`` texels apart and every chart half a
-gutter from the atlas border, by construction.
+Method ``"shape"`` (uvbake.atlas.shapepack) packs the charts' conservative texel footprints with quarter
+turns of their minimum-area-rectangle angle (and 45 degrees from it for the six biggest charts), by
+bottom-left fill on run-length tables, on square, non-square (``texture_size_px=(width, height)``) or
+growing atlases (``texture_size_px=None``; ``aspect="free"`` grows the rectangle of fewest texels).
+
+Method ``"maxrects"``: each chart is rotated to its minimum-area bounding rectangle (rotating calipers
+on the convex hull, vectorised over hull edges), the rectangle is grown by the gutter (half a gutter on
+every side), and the padded rectangles are packed into the unit square by MaxRects (Jylänki 2010) with
+90-degree turns allowed, trying several placement rules and orders; the best scale wins. Boxes that do
+not overlap keep any two charts at least ``gutter_px`` texels apart and every chart half a gutter from
+the atlas border, by construction.
+
+Method ``"auto"`` (the default) is "shape"; for a square atlas of at most 64 charts at a free scale it
+also runs "maxrects" and keeps the denser packing (near-rectangular charts, like sample_scenes/scene.ply,
+pack denser as boxes).
 
 Method ``"xatlas"`` hands the same charts to the xatlas packer (``xatlas.Atlas.add_uv_mesh`` +
-``PackOptions``, bisecting ``texels_per_unit`` until everything fits in one atlas); xatlas packs the
-rasterised chart shapes, not boxes, so charts may nest. uvbake then measures the rigid transform xatlas
-applied to each chart and re-applies it in float64 (xatlas returns float32), checks the charts are
-``gutter_px`` apart exactly (segment distances) and, if not, repacks with a larger padding.
+``PackOptions``, bisecting ``texels_per_unit`` until everything fits in one atlas) and re-applies its
+rigid transforms in float64, checking the gutter exactly; ``"rectpack"`` is rectpack's MaxRects on the
+same padded boxes. Both are for comparison.
 
-Method ``"rectpack"`` is rectpack's MaxRects (best short side fit, area order, 2^20 integer grid) on the
-same padded boxes, for comparison.
-
-Choice of the default (``"auto"`` = ``"maxrects"``), from ``python bench/pack.py`` (real flattened charts,
-alpha 0.5; efficiency at texture 1024/2048 and gutter 2/4 px; time per call at 1024 px, 4 px)::
-
-    scene              charts  maxrects            xatlas              rectpack
-    scene.ply (old, 5)    5    61.7-62.8 %  0.02 s  62.0-62.4 %  0.9 s  61.7-62.8 %  0.01 s
-    scene.ply (now, 8)    8    80.7-82.5 %          60.3-64.8 %         77.7-79.6 %
-    multi_component.ply   4    79.2-80.2 %  0.02 s  55.5-63.9 %  1.0 s  79.2-80.2 %  0.01 s
-    beetle, 30 k-means    30   58.2-59.9 %  0.6 s   52.5-56.3 %  2.7 s  55.4-57.1 %  0.1 s
-    camelhead, 40 k-means 45   61.3-63.6 %  0.6 s   fails (*)           60.3-62.7 %  0.16 s
-    median                     62.6 %               56.2 %              62.2 %
-
-    (*) xatlas 0.0.11 leaves a vertex of a degenerate chart unplaced.
-
-Own MaxRects is best or within 0.3 points of the best in every cell (xatlas 62.0 % vs 61.7 % on scene.ply
-at 1024 px, 4 px) and 2-4 points better than rectpack with many charts (it tries five placement rules
-and five orders where rectpack runs one); it costs more time (about 0.6 s
-for 30-45 charts) but needs no dependency (rectpack ships only as an sdist). xatlas packs shapes, yet
-loses here: the charts are nearly convex (their minimum-area rectangles are 66-97 % full), its
-padding leaves 2p+1 texels (uvbake searches p for the gutter, so gaps overshoot), its 90-degree turn
-and "rotate to axis" options mirror charts (so uvbake turns them off and pre-rotates), and several
-``add_uv_mesh`` calls scrambled faces (uvbake adds one mesh). The 70 % target is met on
-multi_component.ply (80 %) and on today's scene.ply (80.7-82.5 %); the earlier scene.ply (62.8 %) had
-five charts that were near-rectangles
-(2.06 x 1.03, 1.24 x 1.01, two 1.03 x 1.02, 1.02 x 0.82) whose sides all exceed 0.8, so a square atlas
-needs three rows or columns; no packer measured did better. The k-means pieces fill only 66-70 % of
-their minimum-area rectangles, which caps any box packer below 70 %.
+What was measured for these choices: docs/decisions/pack.md (``python bench/pack.py``).
 
 Efficiency (``PackResult.efficiency``) is defined as::
 
-    efficiency = sum over charts, over triangles, of |triangle area in texels|  /  texture_size_px**2
-               = scale**2 * (sum of |triangle areas| in world units**2)
+    efficiency = sum over charts, over triangles, of |triangle area in texels|  /  (width * height)
+               = texel_density**2 * (sum of |triangle areas| in world units**2) / (width * height)
 
 i.e. the fraction of the atlas's texels covered by chart triangles (overlapping triangles inside a
 chart would be counted twice; validated charts have none).
