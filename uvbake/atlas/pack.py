@@ -63,11 +63,11 @@ class PackResult:
     Attributes
     ----------
     uv : list of (k_i,2) float arrays     per-vertex atlas UVs of each chart, in [0,1]^2
-    scale : float                         atlas units per world unit (the same for every chart)
-    texel_size_world : float              world length of one texel, 1 / (scale * texture_size_px)
+    scale : float                         atlas u units per world unit, texel_density / width_px (every chart)
+    texel_size_world : float              world length of one texel, 1 / texel_density
     rotation : (n,) float array           rotation of each chart, radians (counter-clockwise)
     offset : (n,2) float array            translation: ``uv[i] = scale * R(rotation[i]) @ chart_uv + offset[i]``
-    efficiency : float                    sum of |triangle areas| in texels / texture_size_px**2
+    efficiency : float                    sum of |triangle areas| in texels / (width_px * height_px)
     texture_size_px, gutter_px : int      the atlas resolution and gutter the packing was made for
     method : str                          the packer that was used ("shape", "maxrects", "xatlas", "rectpack")
     time_s : float                        wall time of pack_charts (measured only: no decision reads it)
