@@ -3,6 +3,7 @@
     python bench/pack.py                      # every chart set (bench/pack_charts.py), 1024 px, gutter 4
     python bench/pack.py --only scene,ribbon  # chart sets whose name contains one of these
     python bench/pack.py --no-blender         # skip Blender (it needs /work/venvs/bpy or --bpy-python)
+    python bench/pack.py --commands           # the whole uvbake command per mesh: packing's share of it
 
 Chart sets (bench/pack_charts.py, cached): uvbake's own final charts on every mesh in ../shared/meshes and
 sample_scenes/, xatlas's charts (``xatlas.parametrize`` split into islands) on the same meshes, and a long
@@ -138,6 +139,21 @@ def run_blender(uvs, faces, N, g, bpy_python, cache=None):
                     atlas=f"{N}x{N}", note="")
 
 
+def commands(log=sys.stdout):
+    """The whole command (``uvbake.unwrap``, defaults) on every mesh: packing time and its share."""
+    import uvbake
+    from pack_charts import mesh_paths
+
+    print("| mesh | charts | packing | method | texel density (px/unit) | pack (s) | command (s) | share |", file=log)
+    print("|---|---:|---:|---|---:|---:|---:|---:|", file=log)
+    for path in mesh_paths():
+        r = uvbake.unwrap(str(path))
+        a, t = r.report["atlas"], r.report["timings"]
+        print(f"| {path.stem} | {r.report['charts_final']} | {100 * a['efficiency']:.1f} % | {a['method']} "
+              f"| {a['texel_density']:.4g} | {t['pack_s']:.2f} | {t['total_s']:.2f} "
+              f"| {100 * t['pack_s'] / t['total_s']:.0f} % |", file=log, flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default=None, help="comma-separated substrings of chart-set names")
@@ -146,7 +162,10 @@ def main(argv=None):
     ap.add_argument("--no-blender", action="store_true")
     ap.add_argument("--no-xatlas", action="store_true")
     ap.add_argument("--bpy-python", default=str(BPY))
+    ap.add_argument("--commands", action="store_true", help="time the whole uvbake command on every mesh instead")
     args = ap.parse_args(argv)
+    if args.commands:
+        return commands()
     N, g = args.size, args.gutter
     sets = chart_sets(args.only.split(",") if args.only else None)
     blender = not args.no_blender and Path(args.bpy_python).exists()
