@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from test_pack import edges_cross, grid_chart, min_gap, signed_areas, star_chart
-from uvbake.atlas.shapepack import footprint, boundary_halfedges, gutter_element, mip_gutter_px
+from uvbake.atlas.distance import boundary_halfedges
+from uvbake.atlas.shapepack import footprint, gutter_element, mip_gutter_px
 from uvbake.errors import InputError
 from uvbake.atlas.pack import pack_charts
 

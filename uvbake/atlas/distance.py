@@ -7,13 +7,17 @@ import itertools
 import numpy as np
 
 
-def boundary_segments(uv, F):
-    """Boundary edges of a chart as segments (b,2,2): edges used by exactly one triangle."""
+def boundary_halfedges(F):
+    """Oriented boundary edges ``(b,2)`` of a triangle set: the half-edges without a twin."""
     E = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     key = np.sort(E, axis=1)
     _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    B = E[cnt[inv.ravel()] == 1]
-    return uv[B]
+    return E[cnt[inv.ravel()] == 1]
+
+
+def boundary_segments(uv, F):
+    """Boundary edges of a chart as segments (b,2,2): edges used by exactly one triangle."""
+    return uv[boundary_halfedges(F)]
 
 
 def _seg_seg_dist(S, T):

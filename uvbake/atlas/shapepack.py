@@ -29,20 +29,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uvbake.atlas.distance import boundary_halfedges
+
 _EPS = 1e-7          # texels: every touch test is widened by this, so rounding never drops a touched texel
 _CHUNK = 16          # candidate rows tested together
 _BATCH = 512         # surviving positions whose other runs are tested together
 
 
 # ------------------------------------------------------------------------------------ rasterising
-
-def boundary_halfedges(F):
-    """Oriented boundary edges ``(b,2)`` of a triangle set: the half-edges without a twin."""
-    E = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.sort(E, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return E[cnt[inv.ravel()] == 1]
-
 
 def _ranges(lo, hi):
     """For integer ranges ``[lo_i, hi_i]`` (inclusive): (owner index, value) of every member."""
@@ -315,12 +309,13 @@ class ShapePacker:
         self.bedges = [boundary_halfedges(F) for F in faces]
         self.flipped = []
         self.area = np.zeros(len(uvs))
+        from uvbake.atlas.pack import triangle_areas
+
         for i, (uv, F) in enumerate(zip(uvs, faces)):
-            a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
-            sa = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+            sa = triangle_areas(uv, F)
             major = 1.0 if sa.sum() >= 0 else -1.0
             self.flipped.append(np.flatnonzero(sa * major <= 0))
-            self.area[i] = 0.5 * np.abs(sa).sum()
+            self.area[i] = np.abs(sa).sum()
         self.order = np.lexsort((np.arange(len(uvs)), -self.area))      # biggest first, ties by index
 
     def _candidates(self, i, density):
