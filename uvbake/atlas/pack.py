@@ -150,11 +150,11 @@ def _check_gutter(gutter_px, mip_levels, W, H):
 
     need = None
     if mip_levels is not None:
-        K = _check_int_option(mip_levels, "mip_levels", 0, 8, "pass how many mip levels must not bleed, 0 to 8")
-        need = mip_gutter_px(K)
-        if W is not None and (W % 2 ** K or H % 2 ** K):
-            raise InputError(f"texture_size_px={W if W == H else (W, H)} is not a multiple of 2**mip_levels="
-                             f"{2 ** K}; pass a texture size divisible by {2 ** K} or fewer mip_levels")
+        K = _check_int_option(mip_levels, "mip_levels", 1, 8, "pass how many mip levels must not bleed, 1 to 8")
+        need, q = mip_gutter_px(K), 2 ** (K - 1)
+        if W is not None and (W % q or H % q):
+            raise InputError(f"texture_size_px={W if W == H else (W, H)} is not a multiple of 2**(mip_levels-1)="
+                             f"{q}; pass a texture size divisible by {q} or fewer mip_levels")
     if gutter_px is None:
         return 4 if need is None else need
     if isinstance(gutter_px, bool) or not isinstance(gutter_px, numbers.Integral):
@@ -482,8 +482,9 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
         Texels per world unit, fixed (one density across assets): the charts are packed at that scale,
         the atlas grows when ``texture_size_px`` is None, else an InputError says they cannot fit.
     mip_levels : int, optional
-        Mip levels (0..8) whose bilinear filtering must not bleed between charts; sets the gutter to
-        ``ceil(1.5 * sqrt(2) * 2**mip_levels)`` texels (see ``uvbake.atlas.shapepack.mip_gutter_px``).
+        How many mip levels (1..8: levels 0..mip_levels-1) must not bleed between charts under bilinear
+        filtering of uvbake's dilated bakes; sets the gutter (6, 10, 19, 36 texels for 1..4 levels; see
+        ``uvbake.atlas.shapepack.mip_gutter_px``).
     aspect : "square" | "free"
         Shape of an atlas that grows (``texture_size_px=None``): square, or the rectangle of fewest
         texels (a long ribbon gets a long atlas).
@@ -508,7 +509,7 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
     if used != "shape" and (density is not None or W != H):
         raise InputError(f"method={method!r} packs square atlases at a free scale; use method='shape' for "
                          f"texel_density or a non-square texture_size_px")
-    K = 0 if mip_levels is None else int(mip_levels)
+    K = 0 if mip_levels is None else max(int(mip_levels) - 1, 0)        # the coarsest level kept clean
     if aspect not in ("square", "free"):
         raise InputError(f"aspect={aspect!r} is not 'square' or 'free'; pick one of those")
     if aspect == "free" and W is not None:

@@ -431,19 +431,26 @@ def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, 
 
 
 def mip_gutter_px(mip_levels):
-    """Gutter (texels at level 0) that keeps charts from bleeding into each other down to mip level K.
+    """Gutter (texels) that keeps charts from bleeding into each other at mip levels ``0..mip_levels-1``.
 
-    With box-filtered mip levels on a texture whose sides are multiples of ``S = 2**K``, a bilinear
-    sample at a point ``p`` of chart A at level ``k <= K`` reads the level-k texels containing
-    ``p + (+-S_k/2, +-S_k/2)`` (``S_k = 2**k``); such a texel holds chart B's colour only if it contains
-    a point ``q`` of B, so ``|p - q|_inf < S_k + S_k/2``. Charts ``g`` texels apart (Euclidean) are at
-    least ``g / sqrt(2)`` apart in the max-norm, so no level up to K bleeds when
-    ``g >= 1.5 * sqrt(2) * 2**K`` (3, 5, 9, 17, 34 texels for K = 0..4). The shorter rule ``g >= 2**K``
-    is not enough: with ``g = 2**K`` chart A's level-K texel can neighbour one of B (K = 1: A ending at
-    x = 1.5 and B starting at x = 3.5 fill the level-1 texels [0, 2) and [2, 4), and a bilinear sample at
-    x = 1.5 reads both).
+    The count follows ``uvbake.atlas.bake.dilate_px_for_mips``. uvbake's bake colours every texel whose
+    centre is within ``BAKE_MARGIN_PX`` (2) of a chart, then dilates: every other texel takes the colour
+    of the nearest covered texel, so the gutter between charts A and B is split where the two sides'
+    covered texels are equally far. A bilinear sample at a point p of A at level k (each level a 2x box
+    filter) reads level-0 texels whose centres are less than ``r = sqrt(2) * (1.5 * 2^k - 0.5)`` from p
+    (as in the bake's derivation); such a centre x is within ``r + sqrt(0.5)`` of a texel covered by A and
+    at least ``g - r - 2`` from any covered by B, so it holds A's colour when ``g > 2 r + 2 + sqrt(0.5)``:
+    6, 10, 19, 36 texels for 1, 2, 3, 4 levels. Without the dilation half of that would do, but then
+    the samples at a chart's edge read background; the rule ``g >= 2^k`` bleeds already at level 0
+    (tests/test_shapepack.py simulates bake, dilation, box mips and bilinear reads for both).
     """
-    return int(np.ceil(1.5 * np.sqrt(2.0) * 2 ** int(mip_levels) - 1e-9))
+    from uvbake.atlas.bake import BAKE_MARGIN_PX
+
+    L = int(mip_levels)
+    if L < 1:
+        return 0
+    r = np.sqrt(2.0) * (1.5 * 2 ** (L - 1) - 0.5)
+    return int(np.floor(2 * r + BAKE_MARGIN_PX + np.sqrt(0.5))) + 1
 
 
 def grow_square(packer, gutter_px, density, *, quantum=4, max_side=16384):

@@ -69,9 +69,9 @@ def _parser():
     g.add_argument("--texel-density", type=float, default=None, metavar="PX_PER_UNIT",
                    help="fixed texels per world unit, the same across assets (the texture grows to fit, or with "
                         "--texture-size the command says it cannot fit)")
-    g.add_argument("--mip-levels", type=int, default=None, metavar="K",
-                   help="keep charts from bleeding under bilinear filtering down to mip level K: gutter "
-                        "ceil(1.5*sqrt(2)*2^K) texels (3, 5, 9, 17 for K = 0..3)")
+    g.add_argument("--mip-levels", type=int, default=None, metavar="N",
+                   help="keep charts from bleeding into each other under bilinear filtering of the first N mip "
+                        "levels (the baked gutters are dilated): gutter 6, 10, 19, 36 texels for N = 1..4")
     g.add_argument("--bake", metavar="PNG", help="bake a texture to this PNG: a checkerboard, or the vertex "
                                                  "colours when the name contains 'color'/'colour'")
     g.add_argument("--bake-mode", choices=["checker", "vertex-colors"], help="what --bake bakes (overrides the name)")
