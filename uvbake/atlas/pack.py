@@ -515,11 +515,13 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
     if aspect == "free" and W is not None:
         raise InputError("aspect='free' sizes a growing atlas; pass texture_size_px=None with texel_density")
     if used == "shape":
-        s, rotation, offset, out, gap, W, H, density = _place_shapes(uvs, faces, W, H, g, density, rotate, K,
-                                                                     aspect)
-        if method == "auto" and W == H and texel_density is None and len(uvs) <= 64:
+        boxes = None
+        if method == "auto" and W == H and density is None and len(uvs) <= 64:
             boxes = _place_boxes(uvs, faces, W, g, "maxrects") if rotate else \
                 _place_unrotated(uvs, faces, W, g, "maxrects")
+        s, rotation, offset, out, gap, W, H, density = _place_shapes(
+            uvs, faces, W, H, g, density, rotate, K, aspect, guess=None if boxes is None else boxes[0] * W)
+        if boxes is not None:
             if boxes[0] > s * (1 + 1e-12):
                 s, rotation, offset, out, gap = boxes
                 used, density = "maxrects", boxes[0] * W
@@ -546,7 +548,7 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
                       texel_density=float(density))
 
 
-def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect):
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, guess=None):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing."""
     from uvbake.atlas.shapepack import ShapePacker, fit_scale, grow_rectangle, grow_square
 
@@ -560,7 +562,7 @@ def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect):
     packer = ShapePacker(uvs, faces, angles, quarter_turns=bool(rotate))
     if density is None:
         # full-resolution trials add <= 1.2 points below 12 charts (bench/pack.py) at 2-3x the time
-        p = fit_scale(packer, W, H, g, fine_packs=2 if len(uvs) >= 12 else 0)
+        p = fit_scale(packer, W, H, g, fine_packs=2 if len(uvs) >= 12 else 0, guess=guess)
         if p is None:
             raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
                              f"take the room; reduce gutter_px or increase texture_size_px")

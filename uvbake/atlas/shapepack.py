@@ -393,7 +393,7 @@ def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
     return lo, lo_pack
 
 
-def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, fine_packs=2):
+def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, fine_packs=2, guess=None):
     """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
 
     Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
@@ -401,7 +401,8 @@ def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, 
     the long side about ``coarse_px``, the short side at least 32; gutter ``ceil(gutter_px / c)`` coarse texels): a coarse packing
     scaled by ``c`` is a valid full-resolution packing (coarse footprints cover the fine ones, gutters
     and margins only grow), so it is the fallback; then at most ``fine_packs`` full-resolution trials
-    look for a larger density. Returns a ShapePacking at full resolution, or None if nothing fits.
+    look for a larger density. ``guess`` (a density, e.g. a box packer's) starts the search.
+    Returns a ShapePacking at full resolution, or None if nothing fits.
     """
     g = int(gutter_px)
     area = float(packer.area.sum())
@@ -412,7 +413,8 @@ def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, 
     top = np.sqrt(width * height / area) if area > 0 else 1.0
     cw, ch, cg = width // c, height // c, -(-g // c)
     coarse_tol = rel_tol if c == 1 or fine_packs == 0 else 2.5 * rel_tol      # the fine trials refine it
-    lo, p = _search(packer, cw, ch, cg, None, None, top / c, 0.75 * top / c, 16, coarse_tol)
+    start = 0.75 * top if guess is None else min(guess, top)
+    lo, p = _search(packer, cw, ch, cg, None, None, top / c, start / c, 16, coarse_tol)
     if lo is None:                                 # halve until something fits (tiny atlas, big gutter)
         s = 0.75 * top / c
         for _ in range(30):
