@@ -137,6 +137,17 @@ def _unwrap_command(args):
         raise InputError(f"--workers {args.workers} must be at least 1")
     if args.texture_size is None and args.texel_density is None:
         args.texture_size = 1024
+    if args.texel_density is not None and not args.texel_density > 0:      # also NaN
+        raise InputError(f"--texel-density {args.texel_density} must be a positive number of texels per unit")
+    if args.mip_levels is not None:
+        from uvbake.atlas.shapepack import mip_gutter_px
+
+        if not 1 <= args.mip_levels <= 8:
+            raise InputError(f"--mip-levels {args.mip_levels} must be from 1 to 8")
+        need = mip_gutter_px(args.mip_levels)
+        if args.gutter is not None and args.gutter < need:
+            raise InputError(f"--gutter {args.gutter} is less than the {need} texels --mip-levels "
+                             f"{args.mip_levels} needs; leave --gutter out or raise it")
     _check_texture(args.texture_size, args.gutter, args.texel_density)
     out = output_path(args.mesh, args.output)
     if out.suffix.lower() not in (".obj", ".glb"):
