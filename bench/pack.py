@@ -1,22 +1,40 @@
-"""Benchmark of uvbake.pack_charts: packing efficiency and time per packer, texture size and gutter.
+"""Packing benchmark: uvbake's packer against xatlas's and Blender's on the same charts, one run.
 
-    python bench/pack.py              # all scenes, methods maxrects / xatlas / rectpack (those installed)
-    python bench/pack.py --quick      # scene.ply only, texture 1024, gutter 4
+    python bench/pack.py                      # every chart set (bench/pack_charts.py), 1024 px, gutter 4
+    python bench/pack.py --only scene,ribbon  # chart sets whose name contains one of these
+    python bench/pack.py --no-blender         # skip Blender (it needs /work/venvs/bpy or --bpy-python)
+    python bench/pack.py --commands           # the whole uvbake command per mesh: packing's share of it
 
-Chart sets are real flattened charts (``uvbake.parameterize_charts(charts, alpha=0.5)``):
-- scene.ply (8 labelled charts), multi_component.ply (4 components), both from sample_scenes/;
-- beetle-30 / camelhead-40: the research meshes in ../shared/meshes cut into pieces by k-means on face
-  centroids (each piece split into edge-connected charts; pieces that are not disks are skipped).
+Chart sets (bench/pack_charts.py, cached): uvbake's own final charts on every mesh in ../shared/meshes and
+sample_scenes/, xatlas's charts (``xatlas.parametrize`` split into islands) on the same meshes, and a long
+twisted ribbon (one chart). Packers, each on the same charts with the same gutter:
 
-Every packing is checked: shapes kept (rigid + common scale), all UVs in [0,1]^2, and the exact minimum
-distance between charts (boundary segment distances) at least the gutter. The efficiency column is
-sum of |triangle areas| in texels / texture_size_px**2. Times are the best of ``--repeat`` runs.
+- ``uvbake``: ``pack_charts(method="auto")`` in a 1024 x 1024 atlas (for the ribbon also the best of
+  2048 x 512, 4096 x 256, 8192 x 128 and 16384 x 64, the same texel count, as non-square atlases, and
+  a growing atlas of free aspect at the texel density of 1024^2 texels for the chart's area);
+- ``xatlas``: ``xatlas.Atlas.add_uv_mesh`` + ``generate`` with ``PackOptions(resolution=1024,
+  padding=ceil((gutter-1)/2), rotate_charts=True)`` and texels_per_unit estimated by xatlas (one
+  packing). xatlas returns a W x H atlas cropped to its charts, often far from square (2018 x 1048 on
+  bumpy): its efficiency is measured in the square of side max(W, H) that a square texture needs, and
+  its own W x H figure is given in brackets;
+- ``blender``: ``bpy.ops.uv.pack_islands(shape_method='CONCAVE', rotate=True, margin_method='FRACTION',
+  margin=gutter / 2048)`` (Blender's margin is kept around every island, so two islands end up two
+  margins apart); run in the bpy venv as a subprocess, time of the operator call only; its result is
+  cached in bench/.cache/pack/ (Blender's packing does not change between runs of this benchmark).
+
+Efficiency = sum of |triangle areas| in texels / atlas texels. Every result's exact minimum distance
+between charts is measured (``min gap``, texels); a packing whose gap is under the gutter is flagged.
+``share`` = uvbake's packing time / the whole ``uvbake`` command on that mesh (the command time measured
+when the chart set was made, with the packing time replaced by this one).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -24,131 +42,190 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "bench"))
 
-import uvbake  # noqa: E402
+from pack_charts import CACHE, chart_sets  # noqa: E402
+
 from uvbake.atlas.distance import min_chart_distance  # noqa: E402
 from uvbake.atlas.pack import pack_charts  # noqa: E402
-from uvbake.errors import InputError  # noqa: E402
+from uvbake.mesh.arrays import signed_areas  # noqa: E402
 
-from packers import rectpack_placer, xatlas_placer  # noqa: E402
-
-SHARED = REPO.parent / "shared" / "meshes"
+BPY = Path("/work/venvs/bpy/bin/python")
 
 
-def flatten(charts):
-    res = uvbake.parameterize_charts(charts, alpha=0.5)
-    return [r.uv for r in res], [c.F for c in charts]
+def area_px(uvs, faces, W, H):
+    return sum(np.abs(signed_areas(u * [W, H], f)).sum() for u, f in zip(uvs, faces))
 
 
-def scene(path):
-    m = uvbake.load_mesh(path)
-    return flatten(uvbake.split_charts(m.V, m.F, m.face_labels))
+def gap_px(uvs, faces, W, H):
+    if len(uvs) < 2:
+        return math.inf
+    return min_chart_distance([u * [W, H] for u in uvs], faces)
 
 
-def kmeans_pieces(path, k, seed=0):
-    """Cut a mesh into about ``k`` charts by k-means (Lloyd, 20 rounds) on face centroids."""
-    from uvbake.errors import ChartError
-    from uvbake.mesh.charts import check_chart
-
-    m = uvbake.load_mesh(path)
-    C = m.V[m.F].mean(axis=1)
-    rng = np.random.default_rng(seed)
-    centers = C[rng.choice(len(C), k, replace=False)]
-    for _ in range(20):
-        lab = np.argmin(((C[:, None, :] - centers[None]) ** 2).sum(-1), axis=1)
-        centers = np.array([C[lab == j].mean(0) if np.any(lab == j) else centers[j] for j in range(k)])
-    charts = uvbake.split_charts(m.V, m.F, lab.astype(np.int64), check=False)
-    ok = []
-    for c in charts:
-        if len(c.F) < 4:
-            continue
-        try:
-            check_chart(c.V, c.F, name=c.name)
-        except ChartError:
-            continue
-        ok.append(c)
-    return flatten(ok)
-
-
-def datasets(quick=False):
-    out = {"scene.ply": lambda: scene(REPO / "sample_scenes" / "scene.ply")}
-    if quick:
-        return out
-    out["multi_component.ply"] = lambda: scene(REPO / "sample_scenes" / "multi_component.ply")
-    if (SHARED / "beetle.off").exists():
-        out["beetle-30"] = lambda: kmeans_pieces(SHARED / "beetle.off", 30)
-    if (SHARED / "camelhead.off").exists():
-        out["camelhead-40"] = lambda: kmeans_pieces(SHARED / "camelhead.off", 40)
+def per_vertex(corner, faces):
+    """Per-chart per-vertex UVs from per-corner UVs in stacked face order."""
+    out, k = [], 0
+    for f in faces:
+        c = corner[k:k + len(f)]
+        uv = np.zeros((f.max() + 1, 2))
+        uv[f.ravel()] = c.reshape(-1, 2)
+        out.append(uv)
+        k += len(f)
     return out
 
 
-PLACERS = {"xatlas": xatlas_placer, "rectpack": rectpack_placer}
+def run_uvbake(uvs, faces, N, g, size=0, density=None):
+    t0 = time.perf_counter()
+    if density is None:
+        r = pack_charts(uvs, faces, texture_size_px=size or N, gutter_px=g)
+    else:           # a growing atlas of free aspect at a fixed texel density
+        r = pack_charts(uvs, faces, texture_size_px=None, gutter_px=g, texel_density=density, aspect="free")
+    dt = time.perf_counter() - t0
+    W, H = r.width_px, r.height_px
+    return dict(eff=r.efficiency, time=dt, gap=gap_px(r.uv, faces, W, H), atlas=f"{W}x{H}",
+                note=r.method, density=r.texel_density)
 
 
-def available_methods():
-    methods = ["maxrects"]
-    for name in ("xatlas", "rectpack"):
-        try:
-            __import__(name)
-            methods.append(name)
-        except ImportError:
-            print(f"# {name} not installed: skipped", file=sys.stderr)
-    return methods
+def run_xatlas(uvs, faces, N, g):
+    import xatlas
+
+    offs = np.cumsum([0] + [len(u) for u in uvs])
+    U = np.vstack(uvs).astype(np.float32)
+    F = np.vstack([f + o for f, o in zip(faces, offs)]).astype(np.uint32)
+    t0 = time.perf_counter()
+    atlas = xatlas.Atlas()
+    atlas.add_uv_mesh(U, F)
+    po = xatlas.PackOptions()
+    po.resolution = N
+    po.padding = max(0, math.ceil((g - 1) / 2))
+    po.rotate_charts = True
+    po.bilinear = False
+    atlas.generate(pack_options=po)
+    dt = time.perf_counter() - t0
+    vmap, idx, auv = atlas.get_mesh(0)
+    W, H = int(atlas.width), int(atlas.height)
+    corner = auv[idx].astype(np.float64)
+    if len(idx) != len(F) or not np.array_equal(vmap[idx], F):
+        return dict(eff=float("nan"), time=dt, gap=float("nan"), atlas=f"{W}x{H}", note="faces reordered")
+    out = per_vertex(corner, faces)
+    note = f"{atlas.atlas_count} atlases" if atlas.atlas_count != 1 else ""
+    side = max(W, H)               # a square texture holds xatlas's W x H atlas only at side max(W, H)
+    area = area_px(out, faces, W, H)
+    return dict(eff=area / side ** 2, own=area / (W * H), time=dt, gap=gap_px(out, faces, W, H),
+                atlas=f"{W}x{H}", note=note)
 
 
-def check(res, uvs, faces):
-    """Shapes kept, in the unit square, gutter kept; returns the measured gap in texels."""
-    for uv, q in zip(uvs, res.uv):
-        rng = np.random.default_rng(0)
-        i, j = np.triu_indices(len(uv), 1) if len(uv) < 300 else rng.integers(0, len(uv), (2, 2000))
-        d0 = np.linalg.norm(uv[i] - uv[j], axis=1) * res.scale
-        d1 = np.linalg.norm(q[i] - q[j], axis=1)
-        assert np.allclose(d0, d1, rtol=1e-9, atol=1e-12), "shape changed"
-        assert q.min() >= 0 and q.max() <= 1, "outside [0,1]^2"
-    gap = min_chart_distance(res.uv, faces) * res.texture_size_px
-    assert gap >= res.gutter_px * (1 - 1e-9), f"gutter {gap} < {res.gutter_px}"
-    return gap
+def run_blender(uvs, faces, N, g, bpy_python, cache=None):
+    """Blender's packing; its corner UVs are cached per chart set, size and gutter (it takes up to a minute)."""
+    if cache is not None and cache.exists():
+        z = np.load(cache)
+        out = per_vertex(z["corner_uv"], faces)
+        return dict(eff=area_px(out, faces, N, N) / (N * N), time=float(z["time_s"]), gap=gap_px(out, faces, N, N),
+                    atlas=f"{N}x{N}", note="")
+    with tempfile.TemporaryDirectory() as d:
+        src, dst = Path(d) / "in.npz", Path(d) / "out.npz"
+        np.savez(src, n=len(uvs), margin=g / (2 * N), **{f"uv{i}": u for i, u in enumerate(uvs)},
+                 **{f"f{i}": f for i, f in enumerate(faces)})
+        p = subprocess.run([str(bpy_python), str(REPO / "bench" / "blender_pack.py"), str(src), str(dst)],
+                           capture_output=True, text=True)
+        if p.returncode or not dst.exists():
+            return dict(eff=float("nan"), time=float("nan"), gap=float("nan"), atlas="", note="failed: "
+                        + (p.stderr.strip().splitlines() or ["?"])[-1][:60])
+        z = np.load(dst)
+        if cache is not None:
+            np.savez(cache, corner_uv=z["corner_uv"], time_s=z["time_s"])
+        out = per_vertex(z["corner_uv"], faces)
+        return dict(eff=area_px(out, faces, N, N) / (N * N), time=float(z["time_s"]), gap=gap_px(out, faces, N, N),
+                    atlas=f"{N}x{N}", note="")
+
+
+def commands(log=sys.stdout):
+    """The whole command (``uvbake.unwrap``, defaults) on every mesh: packing time and its share."""
+    from pack_charts import mesh_paths
+
+    import uvbake
+
+    print("| mesh | charts | packing | method | texel density (px/unit) | pack (s) | command (s) | share |", file=log)
+    print("|---|---:|---:|---|---:|---:|---:|---:|", file=log)
+    for path in mesh_paths():
+        r = uvbake.unwrap(str(path))
+        a, t = r.report["atlas"], r.report["timings"]
+        print(f"| {path.stem} | {r.report['charts_final']} | {100 * a['efficiency']:.1f} % | {a['method']} "
+              f"| {a['texel_density']:.4g} | {t['pack_s']:.2f} | {t['total_s']:.2f} "
+              f"| {100 * t['pack_s'] / t['total_s']:.0f} % |", file=log, flush=True)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--repeat", type=int, default=1)
-    ap.add_argument("--methods", default=None, help="comma-separated subset of maxrects,xatlas,rectpack")
+    ap.add_argument("--only", default=None, help="comma-separated substrings of chart-set names")
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--gutter", type=int, default=4)
+    ap.add_argument("--no-blender", action="store_true")
+    ap.add_argument("--no-xatlas", action="store_true")
+    ap.add_argument("--bpy-python", default=str(BPY))
+    ap.add_argument("--commands", action="store_true", help="time the whole uvbake command on every mesh instead")
     args = ap.parse_args(argv)
-    methods = args.methods.split(",") if args.methods else available_methods()
-    sizes = [1024] if args.quick else [1024, 2048]
-    gutters = [4] if args.quick else [2, 4]
-    print("| scene | charts | method | texture | gutter | efficiency | time (s) | min gap (px) |")
-    print("|---|---:|---|---:|---:|---:|---:|---:|")
-    summary = {}
-    for name, make in datasets(args.quick).items():
-        uvs, faces = make()
-        for method in methods:
-            for N in sizes:
-                for g in gutters:
-                    best, res = np.inf, None
-                    for _ in range(args.repeat):
-                        t0 = time.perf_counter()
-                        try:
-                            r = pack_charts(uvs, faces, texture_size_px=N, gutter_px=g,
-                                            method=PLACERS.get(method, method))
-                        except (InputError, RuntimeError) as e:   # a peer failing is reported, not fatal
-                            r = e
-                            break
-                        dt = time.perf_counter() - t0
-                        if dt < best:
-                            best, res = dt, r
-                    if isinstance(r, Exception):
-                        print(f"| {name} | {len(uvs)} | {method} | {N} | {g} | failed: {r} | | |", flush=True)
-                        continue
-                    gap = check(res, uvs, faces)
-                    summary.setdefault(method, []).append(res.efficiency)
-                    print(f"| {name} | {len(uvs)} | {method} | {N} | {g} | {100 * res.efficiency:.1f} % "
-                          f"| {best:.3f} | {gap:.2f} |", flush=True)
-    print()
-    for method, effs in summary.items():
-        print(f"# {method}: median efficiency {100 * np.median(effs):.1f} %, min {100 * np.min(effs):.1f} %")
+    if args.commands:
+        return commands()
+    N, g = args.size, args.gutter
+    sets = chart_sets(args.only.split(",") if args.only else None)
+    blender = not args.no_blender and Path(args.bpy_python).exists()
+    print(f"# texture {N} px, gutter {g} px; efficiency % / time s / min gap px; one run each")
+    print("| charts from | mesh | charts | uvbake | xatlas | blender | uvbake atlas, method | share of command |")
+    print("|---|---|---:|---|---|---|---|---:|")
+    rows = []
+    for name, (uvs, faces, info) in sets.items():
+        src, _, mesh = name.partition(":")
+        if not mesh:
+            src, mesh = "-", name
+        cells = {"uvbake": run_uvbake(uvs, faces, N, g)}
+        if mesh == "ribbon":            # non-square atlases of the same texel count, the best one
+            tries = [run_uvbake(uvs, faces, N, g, size=(N << k, N >> k)) for k in (1, 2, 3, 4)]
+            cells["uvbake-nonsquare"] = max(tries, key=lambda c: c["eff"])
+            world = sum(np.abs(signed_areas(u, f)).sum() for u, f in zip(uvs, faces))
+            cells["uvbake-free"] = run_uvbake(uvs, faces, N, g, size=None, density=N / np.sqrt(world))
+        if not args.no_xatlas:
+            cells["xatlas"] = run_xatlas(uvs, faces, N, g)
+        if blender:
+            key = f"blender__{name.replace(':', '__')}__{N}_{g}.npz"
+            cells["blender"] = run_blender(uvs, faces, N, g, args.bpy_python, cache=CACHE / key)
+
+        def fmt(c):
+            if c is None:
+                return "-"
+            flag = " **gap < gutter**" if c["gap"] < g * (1 - 1e-9) else ""
+            own = f" ({100 * c['own']:.1f} in {c['atlas']})" if "own" in c and c["own"] != c["eff"] else ""
+            return f"{100 * c['eff']:.1f}{own} / {c['time']:.2f} / {c['gap']:.1f}{flag}"
+        share = ""
+        if "command_s" in info:
+            t = cells["uvbake"]["time"]
+            share = f"{100 * t / (info['command_s'] - info['pack_s'] + t):.0f} %"
+        u = cells["uvbake"]
+        desc = f"{u['atlas']}, {u['note']}"
+        if "uvbake-nonsquare" in cells:
+            v = cells["uvbake-nonsquare"]
+            desc += f"; {v['atlas']}: {fmt(v)}"
+            v = cells["uvbake-free"]
+            desc += f"; growing, free aspect, {v['density']:.4g} px/unit: {v['atlas']}: {fmt(v)}"
+        print(f"| {src} | {mesh} | {len(uvs)} | {fmt(u)} | {fmt(cells.get('xatlas'))} | {fmt(cells.get('blender'))} "
+              f"| {desc} | {share} |", flush=True)
+        rows.append((name, len(uvs), cells))
+    multi = [r for r in rows if r[1] > 1]
+    if multi:
+        print()
+        for k in ("uvbake", "xatlas", "blender"):
+            e = [r[2][k]["eff"] for r in multi if k in r[2] and np.isfinite(r[2][k]["eff"])]
+            if e:
+                print(f"# {k}: median efficiency over {len(e)} multi-chart atlases {100 * np.median(e):.1f} %")
+        worst = []
+        for name, n, c in multi:
+            peers = [c[k]["eff"] for k in ("xatlas", "blender") if k in c and np.isfinite(c[k]["eff"])]
+            if peers:
+                worst.append((100 * (c["uvbake"]["eff"] - max(peers)), name))
+        if worst:
+            d, name = min(worst)
+            print(f"# uvbake minus best peer: worst {d:+.1f} points ({name})")
 
 
 if __name__ == "__main__":

@@ -7,13 +7,17 @@ import itertools
 import numpy as np
 
 
-def boundary_segments(uv, F):
-    """Boundary edges of a chart as segments (b,2,2): edges used by exactly one triangle."""
+def boundary_halfedges(F):
+    """Oriented boundary edges ``(b,2)`` of a triangle set: the half-edges without a twin."""
     E = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     key = np.sort(E, axis=1)
     _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    B = E[cnt[inv.ravel()] == 1]
-    return uv[B]
+    return E[cnt[inv.ravel()] == 1]
+
+
+def boundary_segments(uv, F):
+    """Boundary edges of a chart as segments (b,2,2): edges used by exactly one triangle."""
+    return uv[boundary_halfedges(F)]
 
 
 def _seg_seg_dist(S, T):
@@ -39,8 +43,14 @@ def _seg_seg_dist(S, T):
 
 
 def _points_in_triangles(P, uv, F):
-    """True where a point of P lies inside (or on) some triangle of (uv, F)."""
+    """True where a point of P lies inside (or on) some triangle of (uv, F).
+
+    Zero-area triangles are left out: the sign test would call every point on their line inside, and a
+    point on one lies on its edges, which the segment distances already see.
+    """
     a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
+    keep = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) != (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    a, b, c = a[keep], b[keep], c[keep]
     out = np.zeros(len(P), dtype=bool)
     for k in range(0, len(P), 256):
         p = P[k:k + 256, None, :]

@@ -1,25 +1,35 @@
 """Pack flattened charts into one texture atlas in [0,1]^2, with a gutter in texels.
 
-Every chart keeps its shape and its true scale: one scale factor ``s`` (atlas units per world unit) is
-shared by all charts, so texel density is uniform; each chart is only rotated (never mirrored) and
-translated. ``s`` is the largest value (found by bisection, to 0.1 %) at which the packer fits all
-charts; the gutter is fixed in texels while the charts scale.
+Every chart keeps its shape and its true scale: one texel density (texels per world unit) is shared by
+all charts; each chart is only rotated (never mirrored) and translated. The density is the largest at
+which the packer fits all charts (a bisection), or the one the caller fixes (``texel_density``, the same
+across assets; the atlas then grows, or the call says the charts cannot fit). The gutter is fixed in
+texels while the charts scale; ``mip_levels`` derives it (``uvbake.atlas.shapepack.mip_gutter_px``).
 
-Method ``"maxrects"`` (uvbake's own): each chart is rotated to its minimum-area bounding rectangle
-(rotating calipers on the convex hull, vectorised over hull edges), the rectangle is grown by the
-gutter (half a gutter on every side), and the padded rectangles are packed into the unit square by
-MaxRects (Jylänki 2010) with 90-degree turns allowed, trying several placement rules (best short side,
-best long side, best area, bottom-left, contact point) and several orders; the best scale wins. Boxes
-that do not overlap keep any two charts at least ``gutter_px`` texels apart and every chart half a
-gutter from the atlas border, by construction.
+Method ``"shape"`` (uvbake.atlas.shapepack) packs the charts' conservative texel footprints with quarter
+turns of their minimum-area-rectangle angle (and 45 degrees from it for the six biggest charts), by
+bottom-left fill on run-length tables, on square, non-square (``texture_size_px=(width, height)``) or
+growing atlases (``texture_size_px=None``; ``aspect="free"`` grows the rectangle of fewest texels).
 
-Other placers (bench/packers.py wraps xatlas and rectpack, the peers the default was measured
-against: docs/decisions/packing.md) plug in as ``method=placer``.
+Method ``"maxrects"``: each chart is rotated to its minimum-area bounding rectangle (rotating calipers
+on the convex hull, vectorised over hull edges), the rectangle is grown by the gutter (half a gutter on
+every side), and the padded rectangles are packed into the unit square by MaxRects (Jylänki 2010) with
+90-degree turns allowed, trying several placement rules and orders; the best scale wins. Boxes that do
+not overlap keep any two charts at least ``gutter_px`` texels apart and every chart half a gutter from
+the atlas border, by construction.
+
+Method ``"auto"`` (the default) is "shape"; for a square atlas of at most 64 charts at a free scale it
+also runs "maxrects" and keeps the denser packing (near-rectangular charts, like sample_scenes/scene.ply,
+pack denser as boxes).
+
+Other placers plug in as ``method=placer`` (bench/packers.py wraps the peers xatlas and rectpack).
+
+What was measured for these choices: docs/decisions/pack.md (``python bench/pack.py``).
 
 Efficiency (``PackResult.efficiency``) is defined as::
 
-    efficiency = sum over charts, over triangles, of |triangle area in texels|  /  texture_size_px**2
-               = scale**2 * (sum of |triangle areas| in world units**2)
+    efficiency = sum over charts, over triangles, of |triangle area in texels|  /  (width * height)
+               = texel_density**2 * (sum of |triangle areas| in world units**2) / (width * height)
 
 i.e. the fraction of the atlas's texels covered by chart triangles (overlapping triangles inside a
 chart would be counted twice; validated charts have none).
@@ -28,7 +38,6 @@ chart would be counted twice; validated charts have none).
 from __future__ import annotations
 
 import numbers
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -41,8 +50,8 @@ from uvbake.mesh.arrays import signed_areas
 
 #: what a placer returns: common scale, per-chart rotation and offset, placed UVs, measured gap (px) or None
 Placement = tuple[float, np.ndarray, np.ndarray, list[np.ndarray], "float | None"]
-METHODS = ("auto", "maxrects")
-DEFAULT_METHOD = "maxrects"
+METHODS = ("auto", "shape", "maxrects")
+DEFAULT_METHOD = "shape"
 
 _EPS_PAD = 1e-9          # extra padding in atlas units, so rounding never eats into the gutter
 _REL_TOL = 1e-3          # relative precision of the scale bisection
@@ -55,15 +64,20 @@ class PackResult:
     Attributes
     ----------
     uv : list of (k_i,2) float arrays     per-vertex atlas UVs of each chart, in [0,1]^2
-    scale : float                         atlas units per world unit (the same for every chart)
-    texel_size_world : float              world length of one texel, 1 / (scale * texture_size_px)
+    scale : float                         atlas u units per world unit, texel_density / width_px (every chart)
+    texel_size_world : float              world length of one texel, 1 / texel_density
     rotation : (n,) float array           rotation of each chart, radians (counter-clockwise)
     offset : (n,2) float array            translation: ``uv[i] = scale * R(rotation[i]) @ chart_uv + offset[i]``
-    efficiency : float                    sum of |triangle areas| in texels / texture_size_px**2
+    efficiency : float                    sum of |triangle areas| in texels / (width_px * height_px)
     texture_size_px, gutter_px : int      the atlas resolution and gutter the packing was made for
-    method : str                          the packer that was used ("maxrects", "xatlas", "rectpack")
-    time_s : float                        wall time of pack_charts
+    method : str                          the packer that was used ("shape", "maxrects", or a placer's name)
+    time_s : float                        wall time of pack_charts (measured only: no decision reads it)
     min_gap_px : float or None            measured minimum distance between charts, texels (xatlas only)
+    width_px, height_px : int             atlas size in texels (``texture_size_px`` is the width)
+    texel_density : float                 texels per world unit, the same for every chart
+
+    For a non-square atlas ``uv = (texel_density * R(rotation[i]) @ chart_uv + offset_px) / (width, height)``
+    with ``offset_px = offset * (width, height)``: shapes are kept in texel units.
     """
 
     uv: list
@@ -77,6 +91,9 @@ class PackResult:
     method: str
     time_s: float
     min_gap_px: float | None = None
+    width_px: int = 0
+    height_px: int = 0
+    texel_density: float = 0.0
 
     @property
     def n_charts(self) -> int:
@@ -96,6 +113,9 @@ class PackResult:
             "method": self.method,
             "time_s": float(self.time_s),
             "min_gap_px": None if self.min_gap_px is None else float(self.min_gap_px),
+            "width_px": int(self.width_px),
+            "height_px": int(self.height_px),
+            "texel_density": float(self.texel_density),
         }
 
 
@@ -110,17 +130,62 @@ def _check_int_option(value, name, lo, hi, fix):
     return value
 
 
-def _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method):
-    N = _check_int_option(texture_size_px, "texture_size_px", 16, 16384,
-                          "pass an integer number of texels between 16 and 16384, e.g. 1024")
+def _check_size(texture_size_px, texel_density):
+    """(width, height) in texels, or (None, None) when the atlas grows to fit ``texel_density``."""
+    fix = "pass an integer number of texels between 16 and 16384, e.g. 1024, or a (width, height) pair"
+    if texture_size_px is None:
+        if texel_density is None:
+            raise InputError("texture_size_px=None needs texel_density (the atlas then grows to fit); "
+                             "pass texture_size_px, e.g. 1024, or texel_density")
+        return None, None
+    if isinstance(texture_size_px, (tuple, list)) and len(texture_size_px) == 2:
+        W, H = (_check_int_option(v, "texture_size_px", 16, 16384, fix) for v in texture_size_px)
+        return W, H
+    N = _check_int_option(texture_size_px, "texture_size_px", 16, 16384, fix)
+    return N, N
+
+
+def _check_gutter(gutter_px, mip_levels, W, H):
+    """The gutter in texels: ``gutter_px``, or derived from ``mip_levels`` (see mip_gutter_px)."""
+    from uvbake.atlas.shapepack import mip_gutter_px
+
+    need = None
+    if mip_levels is not None:
+        K = _check_int_option(mip_levels, "mip_levels", 1, 8, "pass how many mip levels must not bleed, 1 to 8")
+        need, q = mip_gutter_px(K), 2 ** (K - 1)
+        if W is not None and (W % q or H % q):
+            raise InputError(f"texture_size_px={W if W == H else (W, H)} is not a multiple of 2**(mip_levels-1)="
+                             f"{q}; pass a texture size divisible by {q} or fewer mip_levels")
+    if gutter_px is None:
+        return 4 if need is None else need
     if isinstance(gutter_px, bool) or not isinstance(gutter_px, numbers.Integral):
         raise InputError(f"gutter_px={gutter_px!r} is not an integer; pass a whole number of texels >= 0, e.g. 4")
     g = int(gutter_px)
     if g < 0:
         raise InputError(f"gutter_px={g} is negative; pass a whole number of texels >= 0, e.g. 4")
-    if g >= N:
-        raise InputError(f"gutter_px={g} leaves no room in a {N}-texel atlas; "
+    if need is not None and g < need:
+        raise InputError(f"gutter_px={g} is less than the {need} texels mip_levels={mip_levels} needs; "
+                         f"leave gutter_px out (it is derived from mip_levels) or raise it")
+    if W is not None and g >= min(W, H):
+        raise InputError(f"gutter_px={g} leaves no room in a {min(W, H)}-texel atlas; "
                          f"reduce gutter_px or increase texture_size_px")
+    return g
+
+
+def _check_density(texel_density):
+    if texel_density is None:
+        return None
+    try:
+        d = float(texel_density)
+    except (TypeError, ValueError):
+        d = float("nan")
+    if isinstance(texel_density, bool) or not np.isfinite(d) or d <= 0:
+        raise InputError(f"texel_density={texel_density!r} is not a positive number; pass texels per world "
+                         f"unit, e.g. 512")
+    return d
+
+
+def _check_inputs(chart_uvs, chart_faces, method):
     if not callable(method) and (not isinstance(method, str) or method not in METHODS):
         raise InputError(f"method={method!r} is not one of {', '.join(METHODS)} or a placer function; "
                          "pick one of those")
@@ -132,7 +197,7 @@ def _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method):
                          f"array per chart")
     checked = [_check_chart(i, uv, F) for i, (uv, F) in enumerate(zip(chart_uvs, chart_faces))]
     uvs, faces = [c[0] for c in checked], [c[1] for c in checked]
-    return uvs, faces, N, g
+    return uvs, faces
 
 
 def _check_chart(i: int, uv: Any, F: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -274,7 +339,8 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
 
 # ------------------------------------------------------------------------------------------- API
 
-def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=4, rotate=True, method="auto"):
+def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None, rotate=True, method="auto",
+                texel_density=None, mip_levels=None, aspect="square"):
     """Pack charts into one atlas in [0,1]^2 at a common scale, ``gutter_px`` texels apart.
 
     Parameters
@@ -283,50 +349,135 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=4, ro
         Per-vertex UVs of each chart in the surface's own length units (from ``uvbake.parameterize``).
     chart_faces : list of (t_i,3) int arrays
         Each chart's triangles, indexing its UVs.
-    texture_size_px : int
-        Atlas resolution in texels (16 .. 16384); the atlas is square.
-    gutter_px : int
-        Minimum distance between the triangles of any two charts, in texels (>= 0). Charts also keep
-        half a gutter from the atlas border (maxrects / rectpack).
+    texture_size_px : int, (width, height) or None
+        Atlas resolution in texels (16 .. 16384 a side); a pair asks for a non-square atlas ("shape"
+        only); None (with ``texel_density``) lets a square atlas grow until the charts fit.
+    gutter_px : int, optional
+        Minimum distance between the triangles of any two charts, in texels (>= 0); default 4, or the
+        gutter ``mip_levels`` needs. Charts also keep half a gutter from the atlas border.
     rotate : bool
-        Rotate charts (to their minimum-area rectangle, and by 90 degrees where it packs better). With
-        ``rotate=False`` the charts keep their orientation and are only translated (maxrects/rectpack).
-    method : "auto" | "maxrects" | callable
-        The packer; "auto" is "maxrects" (docs/decisions/packing.md). A callable is a placer
-        ``placer(uvs, faces, texture_size_px, gutter_px) -> (s, rotation, offset, uvs, gap_px)``
-        (see :func:`place_boxes`; bench/packers.py wraps xatlas and rectpack this way), and
-        ``PackResult.method`` is its ``__name__``.
+        Rotate charts (never mirror). With ``rotate=False`` charts are only translated.
+    method : "auto" | "shape" | "maxrects" | callable
+        "shape" packs rasterised chart shapes (uvbake.atlas.shapepack); "maxrects" their minimum-area
+        rectangles; "auto" is "shape", and for a square atlas of at most 64 charts at a free scale also
+        tries "maxrects" and keeps the denser packing. A callable is a placer
+        ``placer(uvs, faces, texture_size_px, gutter_px) -> (s, rotation, offset, uvs, gap_px)`` (see
+        :func:`place_boxes`; bench/packers.py wraps xatlas and rectpack), reported by its ``__name__``.
+    texel_density : float, optional
+        Texels per world unit, fixed (one density across assets): the charts are packed at that scale,
+        the atlas grows when ``texture_size_px`` is None, else an InputError says they cannot fit.
+    mip_levels : int, optional
+        How many mip levels (1..8: levels 0..mip_levels-1) must not bleed between charts under bilinear
+        filtering of uvbake's dilated bakes; sets the gutter (6, 10, 19, 36 texels for 1..4 levels; see
+        ``uvbake.atlas.shapepack.mip_gutter_px``).
+    aspect : "square" | "free"
+        Shape of an atlas that grows (``texture_size_px=None``): square, or the rectangle of fewest
+        texels (a long ribbon gets a long atlas).
 
     Returns
     -------
-    :class:`PackResult`; ``efficiency`` = sum of |triangle areas| in texels / texture_size_px**2.
+    :class:`PackResult`; ``efficiency`` = sum of |triangle areas| in texels / (width * height).
     """
+    import time
+
     t0 = time.perf_counter()
-    uvs, faces, N, g = _check_inputs(chart_uvs, chart_faces, texture_size_px, gutter_px, method)
+    uvs, faces = _check_inputs(chart_uvs, chart_faces, method)
+    density = _check_density(texel_density)
+    W, H = _check_size(texture_size_px, density)
+    g = _check_gutter(gutter_px, mip_levels, W, H)
     if not isinstance(rotate, (bool, np.bool_)):
         raise InputError(f"rotate={rotate!r} is not a bool; pass rotate=True or rotate=False")
     used = DEFAULT_METHOD if method == "auto" else method
-    name = used if isinstance(used, str) else getattr(used, "__name__", "custom")
     extents = [np.ptp(uv, axis=0).max() for uv in uvs]
     if max(extents) == 0.0:
         raise InputError("every chart's UVs collapse to a point; nothing to pack (check the parameterization)")
-    if callable(used):
-        if not rotate:
-            raise InputError(f"method={name} always rotates charts; use rotate=True or method='maxrects'")
-        s, rotation, offset, out, gap = used(uvs, faces, N, g)
-    elif rotate:
-        s, rotation, offset, out, gap = place_boxes(uvs, faces, N, g)
+    if used != "shape" and (density is not None or W != H):
+        raise InputError(f"method={method!r} packs square atlases at a free scale; use method='shape' for "
+                         f"texel_density or a non-square texture_size_px")
+    K = 0 if mip_levels is None else max(int(mip_levels) - 1, 0)        # the coarsest level kept clean
+    if aspect not in ("square", "free"):
+        raise InputError(f"aspect={aspect!r} is not 'square' or 'free'; pick one of those")
+    if aspect == "free" and W is not None:
+        raise InputError("aspect='free' sizes a growing atlas; pass texture_size_px=None with texel_density")
+    if used == "shape":
+        boxes = None
+        if method == "auto" and W == H and density is None and len(uvs) <= 64:
+            boxes = place_boxes(uvs, faces, W, g) if rotate else _place_unrotated(uvs, faces, W, g)
+        s, rotation, offset, out, gap, W, H, density = _place_shapes(
+            uvs, faces, W, H, g, density, rotate, K, aspect, guess=None if boxes is None else boxes[0] * W)
+        if boxes is not None:
+            if boxes[0] > s * (1 + 1e-12):
+                s, rotation, offset, out, gap = boxes
+                used, density = "maxrects", boxes[0] * W
     else:
-        s, rotation, offset, out, gap = _place_unrotated(uvs, faces, N, g)
+        N = W
+        if callable(used):
+            if not rotate:
+                raise InputError(f"method={_name(used)} always rotates charts; use rotate=True or method='maxrects'")
+            s, rotation, offset, out, gap = used(uvs, faces, N, g)
+            used = _name(used)
+        elif rotate:
+            s, rotation, offset, out, gap = place_boxes(uvs, faces, N, g)
+        else:
+            s, rotation, offset, out, gap = _place_unrotated(uvs, faces, N, g)
+        density = s * N
     # a chart that cannot fit: the whole atlas would give the largest chart less than one texel
-    if s * max(extents) * N < 1.0:
-        raise InputError(f"the charts cannot fit a {N}-texel atlas with gutter_px={g}: the largest chart would be "
-                         f"under one texel; reduce gutter_px or increase texture_size_px")
+    if density * max(extents) < 1.0:
+        raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the largest chart "
+                         f"would be under one texel; reduce gutter_px or increase texture_size_px")
     area = sum(np.abs(signed_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
-    eff = float(s * s * area)
-    return PackResult(uv=out, scale=float(s), texel_size_world=float(1.0 / (s * N)), rotation=rotation,
-                      offset=offset, efficiency=eff, texture_size_px=N, gutter_px=g, method=name,
-                      time_s=time.perf_counter() - t0, min_gap_px=gap)
+    eff = float(density * density * area / (W * H))
+    return PackResult(uv=out, scale=float(density / W), texel_size_world=float(1.0 / density), rotation=rotation,
+                      offset=offset, efficiency=eff, texture_size_px=W, gutter_px=g, method=used,
+                      time_s=time.perf_counter() - t0, min_gap_px=gap, width_px=W, height_px=H,
+                      texel_density=float(density))
+
+
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, guess=None):
+    """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing."""
+    from uvbake.atlas.shapepack import ShapePacker, fit_scale, grow_rectangle, grow_square
+
+    # each chart at its minimum-area-rectangle angle (+ quarter turns); the six biggest also at 45 degrees
+    # from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4 on sphere_cap),
+    # unless they are longer than 3:1 (a diagonal long chart rasterises a mostly empty square)
+    rects = np.array([min_area_rect(uv) for uv in uvs]) if rotate else np.zeros((len(uvs), 3))
+    big = set(np.lexsort((np.arange(len(uvs)), -rects[:, 1] * rects[:, 2]))[:6].tolist()) if rotate else set()
+    big = {i for i in big if rects[i, 1] <= 3 * rects[i, 2]}
+    angles = [np.array([t, t + np.pi / 4] if i in big else [t]) for i, t in enumerate(rects[:, 0])]
+    packer = ShapePacker(uvs, faces, angles, quarter_turns=bool(rotate))
+    if density is None:
+        # full-resolution trials add <= 1.2 points below 12 charts (bench/pack.py) at 2-3x the time
+        p = fit_scale(packer, W, H, g, fine_packs=2 if len(uvs) >= 12 else 0, guess=guess)
+        if p is None:
+            raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
+                             f"take the room; reduce gutter_px or increase texture_size_px")
+    elif W is None and aspect == "free":
+        W, H, p = grow_rectangle(packer, g, density, quantum=max(4, 2 ** mip_levels))
+        if W is None:
+            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side; lower "
+                             f"texel_density")
+    elif W is None:
+        W, p = grow_square(packer, g, density, quantum=max(4, 2 ** mip_levels))
+        if W is None:
+            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side ({p} at least); "
+                             f"lower texel_density")
+        H = W
+    else:
+        p = packer.pack(density, W, None, g)
+        if p is None or p.height_used > H:
+            need = "a wider atlas" if p is None else f"about {W}x{p.height_used} texels"
+            raise InputError(f"the charts cannot fit texture_size_px={W if W == H else (W, H)} at "
+                             f"texel_density={density:g} (they need {need}); raise texture_size_px, lower "
+                             f"texel_density, or leave texture_size_px out to let the atlas grow")
+    size = np.array([W, H], dtype=np.float64)
+    out = []
+    for i, uv in enumerate(uvs):              # one iteration per chart
+        out.append((p.density * (uv @ rotation_2d(p.rotation[i]).T) + p.offset[i]) / size)
+    return p.density / W, p.rotation, p.offset / size, out, None, W, H, p.density
+
+
+def _name(placer: Any) -> str:
+    return str(getattr(placer, "__name__", "custom"))
 
 
 def _place_unrotated(uvs, faces, N, g):
@@ -363,8 +514,7 @@ def corner_uvs(pack_result, chart_faces, face_index, n_faces):
             raise InputError(f"chart {i}: face_index has {len(idx)} entries for {len(F)} faces; pass one mesh "
                              f"face index per chart face")
         if len(idx) and (idx.min() < 0 or idx.max() >= n_faces):
-            raise InputError(f"chart {i}: face_index must lie in [0, {n_faces - 1}]; "
-                             "pass indices into the mesh's faces")
+            raise InputError(f"chart {i}: face_index must lie in [0, {n_faces - 1}]; pass indices into the mesh's faces")
         out[idx] = pack_result.uv[i][F]
         np.add.at(seen, idx, 1)
     if np.any(seen != 1):

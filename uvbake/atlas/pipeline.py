@@ -80,9 +80,9 @@ def _blank(size):
 
 def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS.backend, tol=DEFAULTS.tol,
            max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed,
-           face_labels=None, texture_size_px=1024, gutter_px=4, bake=None, auto_cut=True,
+           face_labels=None, texture_size_px=1024, gutter_px=None, bake=None, auto_cut=True,
            repair=True, guarantee=True, max_splits=256, continuation=DEFAULTS.continuation, workers=None,
-           progress=None, callback=None):
+           progress=None, callback=None, texel_density=None, mip_levels=None):
     """Unwrap a mesh into a validated texture atlas.
 
     Parameters
@@ -92,10 +92,14 @@ def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS
         As in :func:`uvbake.parameterize`.
     face_labels : (m,) int array, optional
         Per-face segment labels (overrides labels stored in the file).
-    texture_size_px : int
-        Side of the square texture (16 to 16384).
-    gutter_px : int
-        Minimum gap between charts, in texels.
+    texture_size_px : int or None
+        Side of the square texture (16 to 16384); None (with ``texel_density``): the atlas grows to fit.
+    gutter_px : int, optional
+        Minimum gap between charts, in texels (default 4, or what ``mip_levels`` needs).
+    texel_density : float, optional
+        Texels per world unit, fixed: the same density for every asset (see :func:`uvbake.pack_charts`).
+    mip_levels : int, optional
+        Mip levels whose bilinear filtering must not bleed between charts; sets the gutter.
     bake : {None, "checker", "vertex-colors"}
         Texture to bake.
     auto_cut : bool
@@ -126,18 +130,20 @@ def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS
         return _unwrap(source, alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
                        face_labels=face_labels, texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake,
                        auto_cut=auto_cut, repair=repair, guarantee=guarantee, max_splits=max_splits,
-                       continuation=continuation, workers=workers, progress=progress, callback=callback)
+                       continuation=continuation, workers=workers, progress=progress, callback=callback,
+                       texel_density=texel_density, mip_levels=mip_levels)
 
 
 def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, texture_size_px, gutter_px, bake,
-            auto_cut, repair, guarantee, max_splits, continuation, workers, progress, callback):
+            auto_cut, repair, guarantee, max_splits, continuation, workers, progress, callback, texel_density,
+            mip_levels):
     t0 = time.perf_counter()
     timings = {}
     solve_options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
                                  continuation=continuation)
     if bake not in BAKE_MODES:
         raise InputError(f"bake={bake!r} is not one of None, 'checker', 'vertex-colors'")
-    check_texture(texture_size_px, gutter_px)
+    check_texture(texture_size_px, gutter_px, texel_density)
     options = dict(options=solve_options, callback=callback)
     note = progress or (lambda stage, done, total: None)
 
@@ -193,8 +199,9 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     from uvbake.atlas.pack import corner_uvs, pack_charts
 
     t = time.perf_counter()
-    packed = pack_charts([r.uv for r in results], [c.F for c in charts],
-                         texture_size_px=texture_size_px, gutter_px=gutter_px)
+    packed = pack_charts([r.uv for r in results], [c.F for c in charts], texture_size_px=texture_size_px,
+                         gutter_px=gutter_px, texel_density=texel_density, mip_levels=mip_levels)
+    texture_size_px, gutter_px = packed.width_px, packed.gutter_px      # grown, or derived from mip_levels
     corner_uv = corner_uvs(packed, [c.F for c in charts], [c.face_index for c in charts], len(F))
     timings["pack_s"] = time.perf_counter() - t
     note("pack", 1, 1)
@@ -228,7 +235,7 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
         "triangles": int(len(F)),
         "options": solve_options.report()
         | dict(texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake, auto_cut=auto_cut,
-               repair=repair, guarantee=guarantee),
+               repair=repair, guarantee=guarantee, texel_density=texel_density, mip_levels=mip_levels),
         "repair": repair_report,
         "charts_input": n_charts_input,
         "charts_final": len(charts),
@@ -250,14 +257,20 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     return UnwrapResult(V, F, corner_uv, charts, results, chart_ids, image, colors, report)
 
 
-def check_texture(texture_size_px, gutter_px):
-    if isinstance(texture_size_px, bool) or not isinstance(texture_size_px, (int, np.integer)) \
+def check_texture(texture_size_px, gutter_px, texel_density=None):
+    if texture_size_px is None and texel_density is not None:
+        limit = 16384 // 8
+    elif isinstance(texture_size_px, bool) or not isinstance(texture_size_px, (int, np.integer)) \
             or not 16 <= texture_size_px <= 16384:
         raise InputError(f"texture_size_px={texture_size_px!r} must be a whole number of texels from 16 to 16384")
+    else:
+        limit = texture_size_px // 8
+    if gutter_px is None:
+        return
     if isinstance(gutter_px, bool) or not isinstance(gutter_px, (int, np.integer)) \
-            or not 0 <= gutter_px <= texture_size_px // 8:
+            or not 0 <= gutter_px <= limit:
         raise InputError(f"gutter_px={gutter_px!r} must be a whole number of texels from 0 to "
-                         f"{texture_size_px // 8} (an eighth of the texture)")
+                         f"{limit} (an eighth of the texture)")
 
 
 def _disk_charts(V, F, labels, *, auto_cut):
@@ -456,4 +469,5 @@ def _distortion_summary(charts, results):
 
 def _pack_summary(packed):
     d = packed.to_dict() if hasattr(packed, "to_dict") else {}
-    return {k: v for k, v in d.items() if k in ("efficiency", "scale", "texel_size_world", "method", "time_s")}
+    return {k: v for k, v in d.items() if k in ("efficiency", "scale", "texel_size_world", "texel_density", "method",
+                                                 "time_s")}

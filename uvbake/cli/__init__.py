@@ -3,6 +3,7 @@
     uvbake MESH [...]           unwrap (the default command; ``uvbake unwrap MESH`` is the same)
     uvbake check PATH [...]     validate the UVs of a textured mesh
     uvbake sweep MESH [...]     alpha sensitivity study
+    uvbake batch INPUTS -o DIR  many meshes on Dask
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from uvbake.cli import check, sweep, unwrap
+from uvbake.cli import batch, check, sweep, unwrap
 from uvbake.cli.common import ArgumentParser, run
 
 __all__ = ["main", "COMMANDS"]
@@ -20,6 +21,7 @@ COMMANDS = {
     "unwrap": (unwrap, "unwrap a mesh into a textured atlas (the default command)"),
     "check": (check, "validate the UVs of a textured mesh"),
     "sweep": (sweep, "alpha sensitivity study"),
+    "batch": (batch, "many meshes on Dask, resumable"),
 }
 DEFAULT_COMMAND = "unwrap"
 
@@ -28,13 +30,14 @@ def parser() -> ArgumentParser:
     """``uvbake`` with its subcommands; each subcommand's parser reports usage errors as input errors."""
     p = ArgumentParser(prog="uvbake", description=unwrap.DESCRIPTION, epilog=unwrap.EPILOG,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="command", metavar="{unwrap,check,sweep}", parser_class=ArgumentParser)
+    sub = p.add_subparsers(dest="command", metavar="{unwrap,check,sweep,batch}", parser_class=ArgumentParser)
     for name, (module, summary) in COMMANDS.items():
         # `uvbake MESH` is `uvbake unwrap MESH`: its help and errors read as the command itself
         prog = "uvbake" if name == DEFAULT_COMMAND else f"uvbake {name}"
         sp = sub.add_parser(name, prog=prog, help=summary, description=getattr(module, "DESCRIPTION", None),
                             epilog=getattr(module, "EPILOG", None),
-                            formatter_class=argparse.RawDescriptionHelpFormatter)
+                            formatter_class=argparse.RawDescriptionHelpFormatter,
+                            exit_on_usage_error=name == "batch")
         module.add_arguments(sp)
         sp.set_defaults(run=module.run, prog=prog)
     return p

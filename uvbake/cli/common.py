@@ -11,7 +11,7 @@ import argparse
 import os
 import sys
 from collections.abc import Callable
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from uvbake.errors import InputError, UvbakeError
 
@@ -19,9 +19,19 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 2, 3, 1
 
 
 class ArgumentParser(argparse.ArgumentParser):
-    """argparse whose usage errors are uvbake input errors: one line, exit status 2."""
+    """argparse whose usage errors are uvbake input errors: one line, exit status 2.
+
+    ``exit_on_usage_error=True`` keeps argparse's own behaviour (usage, SystemExit(2)) for a command
+    whose callers expect it (``uvbake batch``).
+    """
+
+    def __init__(self, *args: Any, exit_on_usage_error: bool = False, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.exit_on_usage_error = exit_on_usage_error
 
     def error(self, message: str) -> NoReturn:
+        if self.exit_on_usage_error:
+            super().error(message)
         raise InputError(f"{message}; see `{self.prog} --help`")
 
 
@@ -43,8 +53,10 @@ def run(prog: str, command: Callable[[], int]) -> int:
     """Run a command; map what it raises to one line on stderr and an exit status."""
     try:
         return command()
-    except SystemExit as exc:                     # --help, --version
-        return int(exc.code or 0) if isinstance(exc.code, (int, type(None))) else EXIT_BAD_INPUT
+    except SystemExit as exc:                     # --help; argparse's own usage errors go on up
+        if exc.code in (0, None):
+            return EXIT_OK
+        raise
     except BaseException as exc:  # noqa: BLE001 - one line, no traceback, whatever went wrong
         if os.environ.get("UVBAKE_DEBUG") and not isinstance(exc, KeyboardInterrupt):
             raise

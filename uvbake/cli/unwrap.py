@@ -18,6 +18,7 @@ from typing import Any
 
 from uvbake.analysis.crosscheck import cross_check_charts
 from uvbake.atlas.pipeline import check_texture, unwrap
+from uvbake.atlas.shapepack import mip_gutter_px
 from uvbake.errors import InputError
 from uvbake.flatten.options import BACKENDS, DEFAULTS
 from uvbake.flatten.starts import INITS
@@ -39,6 +40,7 @@ EPILOG = (
     "  uvbake scan.ply -o scan.glb --bake colors.png --texture-size 2048 --json report.json\n"
     "other commands: 'uvbake check MESH' validates a textured mesh's UVs; "
     "'uvbake sweep MESH --alphas 0:1:0.1' studies the alpha sensitivity; "
+    "'uvbake batch INPUTS... -o OUTDIR' unwraps many meshes on Dask; "
     "'uvbake unwrap MESH' unwraps a mesh file named like a command."
 )
 
@@ -71,8 +73,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the paper's formulation as is: no chart splitting (flips and overlaps are reported, "
                         "not removed) and no continuation from invalid starts")
     g = p.add_argument_group("atlas and texture")
-    g.add_argument("--texture-size", type=int, default=1024, metavar="PX", help="texture side in texels (default 1024)")
-    g.add_argument("--gutter", type=int, default=4, metavar="PX", help="gap between charts in texels (default 4)")
+    g.add_argument("--texture-size", type=int, default=None, metavar="PX",
+                   help="texture side in texels (default 1024; with --texel-density the texture grows to fit)")
+    g.add_argument("--gutter", type=int, default=None, metavar="PX",
+                   help="gap between charts in texels (default 4, or what --mip-levels needs)")
+    g.add_argument("--texel-density", type=float, default=None, metavar="PX_PER_UNIT",
+                   help="fixed texels per world unit, the same across assets (the texture grows to fit, or with "
+                        "--texture-size the command says it cannot fit)")
+    g.add_argument("--mip-levels", type=int, default=None, metavar="N",
+                   help="keep charts from bleeding into each other under bilinear filtering of the first N mip "
+                        "levels (the baked gutters are dilated): gutter 6, 10, 19, 36 texels for N = 1..4")
     g.add_argument("--bake", metavar="PNG", help="bake a texture to this PNG: a checkerboard, or the vertex "
                                                  "colours when the name contains 'color'/'colour'")
     g.add_argument("--bake-mode", choices=["checker", "vertex-colors"], help="what --bake bakes (overrides the name)")
@@ -116,11 +126,26 @@ def _bake_output(args: argparse.Namespace) -> tuple[Path | None, str | None]:
     return None, None
 
 
+def _check_atlas_args(args: argparse.Namespace) -> None:
+    if args.texture_size is None and args.texel_density is None:
+        args.texture_size = 1024
+    if args.texel_density is not None and not args.texel_density > 0:      # also NaN
+        raise InputError(f"--texel-density {args.texel_density} must be a positive number of texels per unit")
+    if args.mip_levels is not None:
+        if not 1 <= args.mip_levels <= 8:
+            raise InputError(f"--mip-levels {args.mip_levels} must be from 1 to 8")
+        need = mip_gutter_px(args.mip_levels)
+        if args.gutter is not None and args.gutter < need:
+            raise InputError(f"--gutter {args.gutter} is less than the {need} texels --mip-levels "
+                             f"{args.mip_levels} needs; leave --gutter out or raise it")
+    check_texture(args.texture_size, args.gutter, args.texel_density)
+
+
 def _outputs(args: argparse.Namespace) -> _Outputs:
     """Every output path, checked before any work: right suffixes, distinct, never the input."""
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
-    check_texture(args.texture_size, args.gutter)
+    _check_atlas_args(args)
     out = output_path(args.mesh, args.output)
     if out.suffix.lower() not in (".obj", ".glb"):
         raise InputError(f"output {out} must end in .obj or .glb")
@@ -154,7 +179,8 @@ def _solve(args: argparse.Namespace, mode: str | None) -> Any:
 
     result = unwrap(args.mesh, alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol,
                     max_iter=args.max_iter, seed=args.seed, texture_size_px=args.texture_size,
-                    gutter_px=args.gutter, bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
+                    gutter_px=args.gutter, texel_density=args.texel_density, mip_levels=args.mip_levels,
+                    bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
                     guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
                     progress=on_stage, callback=on_iteration)
     if args.cross_check:
@@ -186,7 +212,8 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
     atlas = rep["atlas"]
     print(f"uvbake: {rep['triangles']} triangles -> {rep['charts_final']} chart(s) "
           f"({rep['charts_input']} before cuts and splits), alpha {alpha}; "
-          f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}%, "
+          f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}% "
+          f"of {atlas['texture_size_px']} px at {atlas.get('texel_density', 0):.4g} px/unit, "
           f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written)}")
     for w in (rep.get("repair") or {}).get("warnings", []):
         print(f"uvbake: warning: {w}", file=sys.stderr)

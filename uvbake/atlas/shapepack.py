@@ -1,0 +1,499 @@
+"""Shape-aware chart packing on a texel raster: conservative footprints, rotations, bottom-left fill.
+
+Every chart is rasterised at the atlas's texel resolution into its *footprint*: every texel whose closed
+square meets one of the chart's triangles (conservative: a cell meets the chart iff its centre is inside
+the chart or a boundary edge crosses it, because a segment from an inside point to an outside centre
+crosses the boundary; the interior is filled by the non-zero winding rule on the oriented boundary
+edges, so holes stay free for other charts). Placing footprints at integer texel offsets keeps them
+exact. Two texels ``(i, j)`` and ``(i + di, j + dj)`` are ``sqrt(max(|di|-1,0)^2 + max(|dj|-1,0)^2)``
+apart at least, so once a chart is placed, the texels within that distance ``< gutter_px`` of its
+footprint (a 3x3 dilation, then a Euclidean distance transform) are blocked for every later chart:
+any two charts end up at least ``gutter_px`` texels apart in exact geometry, every chart
+``ceil(gutter_px / 2)`` texels from the atlas border. Mirroring is never used: only rotations.
+
+Placement is bottom-left fill (the lowest, then leftmost, free position; among a chart's rotations the
+one whose top edge is lowest), biggest chart first. The search keeps, for every atlas row, the length
+of the free run starting at each texel (``run``) and each row's longest run: a footprint row made of
+runs ``(dy, a, L)`` fits at ``(x, y)`` iff ``run[y+dy, x+a] >= L`` for all its runs, so candidate rows
+are pruned by the row maxima and candidate positions are filtered one run at a time, all in numpy
+(the idea of xatlas's bitmap packer, written independently as run-length tests).
+
+The common scale is the largest one at which everything fits the atlas (a strip of the atlas width is
+packed, and the scale is searched on the height it needs); with a fixed texel density the strip is
+packed once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from uvbake.atlas.distance import boundary_halfedges
+from uvbake.mesh.arrays import signed_areas
+
+_EPS = 1e-7          # texels: every touch test is widened by this, so rounding never drops a touched texel
+_CHUNK = 16          # candidate rows tested together
+_BATCH = 512         # surviving positions whose other runs are tested together
+
+
+# ------------------------------------------------------------------------------------ rasterising
+
+def _ranges(lo, hi):
+    """For integer ranges ``[lo_i, hi_i]`` (inclusive): (owner index, value) of every member."""
+    n = np.maximum(hi - lo + 1, 0)
+    owner = np.repeat(np.arange(len(lo)), n)
+    start = np.cumsum(n) - n
+    return owner, lo[owner] + (np.arange(int(n.sum())) - start[owner])
+
+
+def _supercover(P0, P1):
+    """Rows and columns of every texel whose closed square a segment meets (widened by _EPS)."""
+    x0, x1 = P0[:, 0], P1[:, 0]
+    e, col = _ranges(np.floor(np.minimum(x0, x1) - _EPS).astype(np.int64),
+                     np.floor(np.maximum(x0, x1) + _EPS).astype(np.int64))
+    a, b = P0[e], P1[e]
+    dx = b[:, 0] - a[:, 0]
+    flat = np.abs(dx) < 1e-12
+    safe = np.where(flat, 1.0, dx)
+    t0 = np.clip((col - _EPS - a[:, 0]) / safe, 0.0, 1.0)
+    t1 = np.clip((col + 1 + _EPS - a[:, 0]) / safe, 0.0, 1.0)
+    t0, t1 = np.where(flat, 0.0, t0), np.where(flat, 1.0, t1)
+    ya = a[:, 1] + t0 * (b[:, 1] - a[:, 1])
+    yb = a[:, 1] + t1 * (b[:, 1] - a[:, 1])
+    k, row = _ranges(np.floor(np.minimum(ya, yb) - _EPS).astype(np.int64),
+                     np.floor(np.maximum(ya, yb) + _EPS).astype(np.int64))
+    return row, col[k]
+
+
+def _centres_in_triangles(T, h, w):
+    """Texels whose centre lies in (or on) one of the triangles ``T (t,3,2)``, either orientation."""
+    lo = np.ceil(T.min(axis=1) - 0.5 - _EPS).astype(np.int64)
+    hi = np.floor(T.max(axis=1) - 0.5 + _EPS).astype(np.int64)
+    tx, cx = _ranges(lo[:, 0], hi[:, 0])
+    k, cy = _ranges(lo[tx, 1], hi[tx, 1])
+    t, cx = tx[k], cx[k]
+    p = np.column_stack([cx + 0.5, cy + 0.5])
+    A, B, C = T[t, 0], T[t, 1], T[t, 2]
+
+    def cross(o, q):
+        return (q[:, 0] - o[:, 0]) * (p[:, 1] - o[:, 1]) - (q[:, 1] - o[:, 1]) * (p[:, 0] - o[:, 0])
+    d1, d2, d3 = cross(A, B), cross(B, C), cross(C, A)
+    tol = _EPS * np.maximum(1.0, np.abs(d1) + np.abs(d2) + np.abs(d3))
+    inside = (((d1 >= -tol) & (d2 >= -tol) & (d3 >= -tol)) | ((d1 <= tol) & (d2 <= tol) & (d3 <= tol)))
+    keep = inside & (cy >= 0) & (cy < h) & (cx >= 0) & (cx < w)
+    return cy[keep], cx[keep]
+
+
+def footprint(q, F, bedges, flipped):
+    """Conservative footprint of a chart whose texel coordinates ``q`` start at (2 _EPS, 2 _EPS).
+
+    Parameters
+    ----------
+    q : (k,2) float array     chart vertices in texels, ``q.min(axis=0) == 2 * _EPS``
+    F : (t,3) int array       triangles
+    bedges : (b,2) int array  oriented boundary edges (``boundary_halfedges(F)``)
+    flipped : (f,) int array  triangles whose orientation differs from the chart's majority; the winding
+                              rule can miss the texels they cover, so they are rasterised one by one
+
+    Returns
+    -------
+    (h,w) bool array: texel ``[r, c]`` is set iff its closed square meets a triangle (to _EPS).
+    """
+    w = int(np.floor(q[:, 0].max() + _EPS)) + 1
+    h = int(np.floor(q[:, 1].max() + _EPS)) + 1
+    P0, P1 = q[bedges[:, 0]], q[bedges[:, 1]]
+    # winding number at texel centres: signed crossings of each row's centre line, summed from the left
+    ya, yb = P0[:, 1], P1[:, 1]
+    e, r = _ranges(np.ceil(np.minimum(ya, yb) - 0.5).astype(np.int64),
+                   np.ceil(np.maximum(ya, yb) - 0.5).astype(np.int64) - 1)
+    yc = r + 0.5
+    xa, xb, y0, y1 = P0[e, 0], P1[e, 0], ya[e], yb[e]
+    x = xa + (yc - y0) * (xb - xa) / (y1 - y0)
+    c = np.clip(np.ceil(x - 0.5).astype(np.int64), 0, w)
+    diff = np.zeros((h, w + 1), np.int32)
+    np.add.at(diff, (r, c), np.where(y1 > y0, 1, -1).astype(np.int32))
+    fp = np.cumsum(diff, axis=1)[:, :w] != 0
+    rr, cc = _supercover(P0, P1)
+    fp[rr, cc] = True
+    if len(flipped):
+        T = q[F[flipped]]
+        rr, cc = _centres_in_triangles(T, h, w)
+        fp[rr, cc] = True
+        E = np.concatenate([T, T[:, [1, 2, 0]]], axis=1).reshape(-1, 2, 2)
+        rr, cc = _supercover(E[:, 0], E[:, 1])
+        fp[rr, cc] = True
+    return fp
+
+
+def _runs(fp):
+    """Horizontal runs of a footprint: rows ``dy``, starts ``a`` and lengths ``L``, row-major order."""
+    h, w = fp.shape
+    pad = np.zeros((h, w + 2), np.int8)
+    pad[:, 1:-1] = fp
+    d = np.diff(pad, axis=1)
+    sr, sc = np.nonzero(d == 1)
+    _, ec = np.nonzero(d == -1)
+    return sr, sc, ec - sc
+
+
+def gutter_element(gutter_px):
+    """Offsets ``(di, dj)`` of texels closer than ``gutter_px`` to texel (0, 0), as a boolean square."""
+    g = int(gutter_px)
+    d = np.maximum(np.abs(np.arange(-g, g + 1)) - 1, 0)
+    el = d[:, None] ** 2 + d[None, :] ** 2 < g * g
+    el[g, g] = True
+    return el
+
+
+def _dilate(fp, g):
+    """Texels closer than ``g`` to the footprint (see gutter_element), on a canvas grown by ``g``.
+
+    The element is the 3x3 square (closed texels) widened by the disk of radius ``g``; it is applied as
+    one horizontal segment per row offset (maximum filters are linear in the canvas size).
+    """
+    h, w = fp.shape
+    out = np.zeros((h + 2 * g, w + 2 * g), bool)
+    out[g:g + h, g:g + w] = fp
+    if g == 0:
+        return out
+    from scipy.ndimage import maximum_filter1d
+
+    el = gutter_element(g)
+    half = el.sum(axis=1) // 2                     # half-width of each row of the element
+    widened = {}
+    res = np.zeros_like(out)
+    for dy in range(-g, g + 1):                    # 2g+1 row offsets, not a loop over texels
+        r = int(half[dy + g])
+        if r not in widened:
+            widened[r] = maximum_filter1d(out, size=2 * r + 1, axis=1, mode="constant") if r else out
+        src = widened[r]
+        if dy >= 0:
+            res[dy:] |= src[:len(src) - dy]
+        else:
+            res[:dy] |= src[-dy:]
+    return res
+
+
+# ------------------------------------------------------------------------------------- the atlas
+
+def _free_runs(blocked):
+    """Length of the free run starting at every texel of each row (0 on blocked texels)."""
+    h, w = blocked.shape
+    idx = np.where(blocked, np.arange(w)[None, :], w)
+    nxt = np.minimum.accumulate(idx[:, ::-1], axis=1)[:, ::-1]
+    return (nxt - np.arange(w)[None, :]).astype(np.int32)
+
+
+class _Atlas:
+    """Blocked texels of a strip ``width`` wide, grown upwards on demand, with free-run tables."""
+
+    def __init__(self, width, height, margin):
+        self.w, self.limit, self.m = width, height, margin
+        self.blocked = np.zeros((0, width), bool)
+        self.run = np.zeros((0, width), np.int32)
+        self.rowmax = np.zeros(0, np.int32)
+        self.top = margin                # first row above every placed chart's blocked texels
+        self._grow(64)
+
+    def _grow(self, rows):
+        """Append ``rows`` free rows (their borders blocked); a free row's run table is one template."""
+        add = np.zeros((rows, self.w), bool)
+        add[:, :self.m] = True
+        add[:, self.w - self.m:] = True
+        tmpl = _free_runs(add[:1])
+        run = np.repeat(tmpl, rows, axis=0)
+        if len(self.blocked) == 0:                 # the bottom margin
+            add[:self.m] = True
+            run[:self.m] = 0
+        self.blocked = np.vstack([self.blocked, add])
+        self.run = np.vstack([self.run, run])
+        self.rowmax = np.concatenate([self.rowmax, run.max(axis=1)])
+
+    def find(self, runs, h, w, top_bound=None):
+        """Lowest, then leftmost, (x, y) where a footprint with ``runs`` fits; None if nowhere, or if its
+        top edge ``y + h`` would exceed ``top_bound`` (a rotation already found does better)."""
+        dy, a, L = runs
+        nx = self.w - w + 1
+        if nx <= 0 or w > self.w - 2 * self.m:
+            return None
+        if self.top + h + 1 > len(self.blocked):
+            self._grow(max(self.top + h + 1 - len(self.blocked), len(self.blocked)))   # doubling
+        ny = self.top + 1                     # every row above `top` is free: y = top always fits
+        if self.limit:
+            ny = min(ny, self.limit - self.m - h + 1)
+        if top_bound is not None:
+            ny = min(ny, top_bound - h + 1)
+        if ny <= self.m:
+            return None
+        # rows where every footprint row finds a long enough free run somewhere
+        Lrow = np.zeros(h, np.int32)
+        np.maximum.at(Lrow, dy, L.astype(np.int32))
+        win = np.lib.stride_tricks.sliding_window_view(self.rowmax[:ny + h - 1], h)
+        ys = np.flatnonzero((win >= Lrow[None, :]).all(axis=1))
+        # the longest run first, then runs spread over the footprint's rows (neighbouring rows agree,
+        # spread ones reject more candidates sooner); a fixed order: no randomness
+        spread = np.mod(dy * 0.6180339887498949, 1.0)
+        spread[np.argmax(L)] = -1.0
+        order = np.lexsort((a, spread))
+        dy, a, L = dy[order], a[order], L[order]
+        k0 = 0
+        while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
+            yc = ys[k0:k0 + _CHUNK]
+            k0 += _CHUNK
+            # dense phase: runs tested on every position of the chunk (row gather + column slice)
+            ok = self.run[yc + dy[0], a[0]:a[0] + nx] >= L[0]
+            k = 1
+            while k < len(dy):
+                ok &= self.run[yc + dy[k], a[k]:a[k] + nx] >= L[k]
+                k += 1
+                if k % 4 == 0 and np.count_nonzero(ok) < nx:
+                    break
+            yi, xi = np.nonzero(ok)           # row-major: bottom-left first
+            for b0 in range(0, len(yi), _BATCH):      # sparse phase: the other runs on the survivors
+                cy, cx = yc[yi[b0:b0 + _BATCH]], xi[b0:b0 + _BATCH]
+                j, step = k, 4
+                while j < len(dy) and len(cy):        # runs in growing blocks; candidates shrink
+                    sel = slice(j, j + step)
+                    keep = (self.run[cy[:, None] + dy[None, sel], cx[:, None] + a[None, sel]]
+                            >= L[None, sel]).all(axis=1)
+                    cy, cx = cy[keep], cx[keep]
+                    j, step = j + step, step * 4
+                if len(cy):
+                    return int(cx[0]), int(cy[0])
+        return None
+
+    def place(self, fp_dilated, x, y, g, top):
+        """Block the dilated footprint whose undilated corner sits at (x, y); update the run tables."""
+        H, W = fp_dilated.shape
+        y0, x0 = y - g, x - g
+        if y0 + H > len(self.blocked):             # rows for the whole gutter above the chart first
+            self._grow(max(y0 + H - len(self.blocked), len(self.blocked)))
+        cy0, cx0 = max(y0, 0), max(x0, 0)
+        cy1, cx1 = min(y0 + H, len(self.blocked)), min(x0 + W, self.w)
+        self.blocked[cy0:cy1, cx0:cx1] |= fp_dilated[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
+        run = _free_runs(self.blocked[cy0:cy1])
+        self.run[cy0:cy1] = run
+        self.rowmax[cy0:cy1] = run.max(axis=1)
+        self.top = max(self.top, top)
+
+
+# ----------------------------------------------------------------------------------------- packing
+
+@dataclass
+class ShapePacking:
+    """Placement of every chart: ``texels_i = density * R(rotation_i) @ uv_i + offset_i``.
+
+    ``density`` is texels per world unit (the same for every chart); ``height_used`` the rows the strip
+    needed, including the top margin.
+    """
+
+    density: float
+    rotation: np.ndarray
+    offset: np.ndarray
+    height_used: int
+    complete: bool = True
+
+
+class ShapePacker:
+    """Packs fixed charts at any texel density; the per-chart data that does not depend on scale is kept.
+
+    Parameters
+    ----------
+    uvs, faces : lists of (k_i,2) float and (t_i,3) int arrays   the charts, in world units
+    angles : list of (r_i,) float arrays                         base rotations to try for each chart
+    quarter_turns : bool                                         also try each base rotation + 90, 180, 270
+    """
+
+    def __init__(self, uvs, faces, angles, *, quarter_turns=True):
+        self.uvs, self.faces, self.angles, self.quarter_turns = uvs, faces, angles, quarter_turns
+        self.bedges = [boundary_halfedges(F) for F in faces]
+        self.flipped = []
+        self.area = np.zeros(len(uvs))
+
+        for i, (uv, F) in enumerate(zip(uvs, faces)):
+            sa = signed_areas(uv, F)
+            major = 1.0 if sa.sum() >= 0 else -1.0
+            self.flipped.append(np.flatnonzero(sa * major <= 0))
+            self.area[i] = np.abs(sa).sum()
+        self.order = np.lexsort((np.arange(len(uvs)), -self.area))      # biggest first, ties by index
+
+    def _candidates(self, i, density):
+        """(footprint, angle, offset) of chart i at every rotation tried: each base angle is rasterised
+        once, its quarter turns are the footprint turned on the texel grid (exact: a quarter turn about
+        a grid point maps texels onto texels), so ``texels = density * R(angle) @ uv + offset``."""
+        for theta in self.angles[i]:
+            c, s = np.cos(theta), np.sin(theta)
+            q = density * (self.uvs[i] @ np.array([[c, s], [-s, c]]))
+            shift = 2 * _EPS - q.min(axis=0)
+            fp = footprint(q + shift, self.faces[i], self.bedges[i], self.flipped[i])
+            t = shift
+            for k in range(4 if self.quarter_turns else 1):
+                yield fp, theta + k * np.pi / 2, t
+                # a quarter turn counter-clockwise: (x, y) -> (h - y, x) keeps texels on texels
+                h = fp.shape[0]
+                fp = np.ascontiguousarray(np.rot90(fp, -1))
+                t = np.array([h - t[1], t[0]])
+
+    def pack(self, density, width, height, gutter_px, *, give_up_above=None):
+        """Bottom-left fill of a ``width``-texel strip (``height`` rows at most, None: unbounded).
+
+        Returns a ShapePacking, or None when some chart does not fit. With ``give_up_above`` the packing
+        stops once it needs more rows: it is returned with ``complete=False`` and ``height_used``
+        extrapolated by the chart area still to place (at a fixed width, height grows with area).
+        """
+        g = int(gutter_px)
+        m = (g + 1) // 2
+        atlas = _Atlas(width, height, m)
+        n = len(self.uvs)
+        rotation, offset = np.zeros(n), np.zeros((n, 2))
+        placed = 0.0
+        for i in self.order:                      # one iteration per chart; the search inside is numpy
+            best = None
+            for r, (fp, theta, t) in enumerate(self._candidates(i, density)):
+                pos = atlas.find(_runs(fp), *fp.shape, top_bound=None if best is None else best[0][0])
+                if pos is None:
+                    continue
+                key = (pos[1] + fp.shape[0], pos[1], pos[0], r)
+                if best is None or key < best[0]:
+                    best = (key, fp, theta, t + pos)
+            if best is None:
+                return None
+            key, fp, theta, off = best
+            atlas.place(_dilate(fp, g), key[2], key[1], g, key[1] + fp.shape[0] + g)
+            rotation[i] = float(np.arctan2(np.sin(theta), np.cos(theta)))
+            offset[i] = off
+            placed += self.area[i]
+            if give_up_above is not None and atlas.top - g + m > give_up_above:
+                used = (atlas.top - g + m) * self.area.sum() / placed
+                return ShapePacking(density=float(density), rotation=rotation, offset=offset,
+                                    height_used=int(np.ceil(used)), complete=False)
+        return ShapePacking(density=float(density), rotation=rotation, offset=offset,
+                            height_used=atlas.top - g + m)
+
+
+def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
+    """Bracketed search for the largest feasible density: the height a trial needs steers the next one
+    (at a fixed width the height grows like density^2), kept inside the bracket [lo, hi]."""
+    for _ in range(max_packs):
+        if lo is not None and hi is not None and hi <= lo * (1 + rel_tol):
+            break
+        p = packer.pack(s, width, None, g, give_up_above=height)
+        if p is not None and p.complete and p.height_used <= height:
+            lo, lo_pack = s, p
+        else:
+            hi = s
+        guess = s * np.sqrt(height / p.height_used) if p is not None else 0.8 * s
+        if lo is None:
+            s = min(guess, 0.9 * s)
+        elif hi is None:
+            s = max(guess, 1.05 * s)
+        else:
+            s = float(np.clip(guess, lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo)))
+    return lo, lo_pack
+
+
+def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, fine_packs=2, guess=None):
+    """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
+
+    Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
+    ``height`` rows. The search runs first on a raster ``c`` times coarser (``c`` a power of two making
+    the long side about ``coarse_px``, the short side at least 32; gutter ``ceil(gutter_px / c)`` coarse texels): a coarse packing
+    scaled by ``c`` is a valid full-resolution packing (coarse footprints cover the fine ones, gutters
+    and margins only grow), so it is the fallback; then at most ``fine_packs`` full-resolution trials
+    look for a larger density. ``guess`` (a density, e.g. a box packer's) starts the search.
+    Returns a ShapePacking at full resolution, or None if nothing fits.
+    """
+    g = int(gutter_px)
+    area = float(packer.area.sum())
+    c = 1
+    while (max(width, height) // (2 * c) >= coarse_px and min(width, height) // (2 * c) >= 32
+           and width % (2 * c) == 0 and height % (2 * c) == 0):
+        c *= 2
+    top = np.sqrt(width * height / area) if area > 0 else 1.0
+    cw, ch, cg = width // c, height // c, -(-g // c)
+    coarse_tol = rel_tol if c == 1 or fine_packs == 0 else 2.5 * rel_tol      # the fine trials refine it
+    start = 0.75 * top if guess is None else min(guess, top)
+    lo, p = _search(packer, cw, ch, cg, None, None, top / c, start / c, 16, coarse_tol)
+    if lo is None:                                 # halve until something fits (tiny atlas, big gutter)
+        s = 0.75 * top / c
+        for _ in range(30):
+            s *= 0.5
+            p = packer.pack(s, cw, None, cg)
+            if p is not None and p.height_used <= ch:
+                lo = s
+                break
+        else:
+            return None
+    best = ShapePacking(density=lo * c, rotation=p.rotation, offset=p.offset * c, height_used=p.height_used * c)
+    if c == 1 or fine_packs == 0:
+        return best
+    s_lo, p = _search(packer, width, height, g, lo * c, best, top, lo * c * 1.03, fine_packs, rel_tol)
+    return p
+
+
+def mip_gutter_px(mip_levels):
+    """Gutter (texels) that keeps charts from bleeding into each other at mip levels ``0..mip_levels-1``.
+
+    The count follows ``uvbake.atlas.bake.dilate_px_for_mips``. uvbake's bake colours every texel whose
+    centre is within ``BAKE_MARGIN_PX`` (2) of a chart, then dilates: every other texel takes the colour
+    of the nearest covered texel, so the gutter between charts A and B is split where the two sides'
+    covered texels are equally far. A bilinear sample at a point p of A at level k (each level a 2x box
+    filter) reads level-0 texels whose centres are less than ``r = sqrt(2) * (1.5 * 2^k - 0.5)`` from p
+    (as in the bake's derivation); such a centre x is within ``r + sqrt(0.5)`` of a texel covered by A and
+    at least ``g - r - 2`` from any covered by B, so it holds A's colour when ``g > 2 r + 2 + sqrt(0.5)``:
+    6, 10, 19, 36 texels for 1, 2, 3, 4 levels. Without the dilation half of that would do, but then
+    the samples at a chart's edge read background; the rule ``g >= 2^k`` bleeds already at level 0
+    (tests/test_shapepack.py simulates bake, dilation, box mips and bilinear reads for both).
+    """
+    from uvbake.atlas.bake import BAKE_MARGIN_PX
+
+    L = int(mip_levels)
+    if L < 1:
+        return 0
+    r = np.sqrt(2.0) * (1.5 * 2 ** (L - 1) - 0.5)
+    return int(np.floor(2 * r + BAKE_MARGIN_PX + np.sqrt(0.5))) + 1
+
+
+def grow_square(packer, gutter_px, density, *, quantum=4, max_side=16384):
+    """Smallest square side (a multiple of ``quantum``) whose strip holds every chart at ``density``.
+
+    Returns (side, ShapePacking) or (None, side needed at least) when it exceeds ``max_side``.
+    """
+    g = int(gutter_px)
+    area_px = float(packer.area.sum()) * density * density
+    side = int(quantum * np.ceil(np.sqrt(area_px / 0.8) / quantum))
+    for _ in range(64):
+        if side > max_side:
+            return None, side
+        p = packer.pack(density, side, None, g)
+        if p is not None and p.height_used <= side:
+            return side, p
+        need = 1.25 * side if p is None else max(side + quantum, np.sqrt(side * p.height_used))   # None: too narrow
+        side = int(quantum * np.ceil(need / quantum))
+    return None, side
+
+
+def grow_rectangle(packer, gutter_px, density, *, quantum=4, max_side=16384):
+    """Smallest-area ``width x height`` atlas (sides multiples of ``quantum``) holding every chart at
+    ``density``: strips of widths ``sqrt(area) * 2^k`` (k = 0..6, at most ``max_side``) are packed (a
+    strip stops once it needs more texels than the best so far) and the one needing the fewest texels
+    wins (ties: the squarer). Returns (width, height, ShapePacking) or (None, None, None) when no strip
+    fits within ``max_side``.
+    """
+    g = int(gutter_px)
+    root = np.sqrt(float(packer.area.sum()) * density * density)
+    widths = sorted({int(quantum * np.ceil(min(max(root * 2.0 ** k, 64), max_side) / quantum)) for k in range(7)})
+    best = None
+    for w in widths:                          # at most seven strips
+        limit = max_side if best is None else min(max_side, best[0][0] // w)
+        p = packer.pack(density, w, None, g, give_up_above=limit)
+        if p is None or not p.complete:
+            continue
+        h = int(quantum * np.ceil(p.height_used / quantum))
+        if h > max_side:
+            continue
+        key = (w * h, abs(np.log(w / h)))
+        if best is None or key < best[0]:
+            best = (key, w, h, p)
+    return (None, None, None) if best is None else best[1:]
