@@ -8,7 +8,7 @@ fits one atlas) packs rasterised chart shapes, so charts may nest; uvbake measur
 xatlas applied to each chart and re-applies it in float64 (xatlas returns float32), checks the charts
 are ``gutter_px`` apart exactly and, if not, repacks with a larger padding. rectpack is MaxRects (best
 short side fit, area order, 2^20 integer grid) on uvbake's padded boxes. Measurements:
-docs/decisions/packing.md. Failures are RuntimeErrors (a peer failing is not bad input).
+docs/decisions/pack.md. Failures are RuntimeErrors (a peer failing is not bad input).
 """
 
 from __future__ import annotations

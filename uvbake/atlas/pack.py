@@ -400,27 +400,11 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
     if aspect == "free" and W is not None:
         raise InputError("aspect='free' sizes a growing atlas; pass texture_size_px=None with texel_density")
     if used == "shape":
-        boxes = None
-        if method == "auto" and W == H and density is None and len(uvs) <= 64:
-            boxes = place_boxes(uvs, faces, W, g) if rotate else _place_unrotated(uvs, faces, W, g)
-        s, rotation, offset, out, gap, W, H, density = _place_shapes(
-            uvs, faces, W, H, g, density, rotate, K, aspect, guess=None if boxes is None else boxes[0] * W)
-        if boxes is not None:
-            if boxes[0] > s * (1 + 1e-12):
-                s, rotation, offset, out, gap = boxes
-                used, density = "maxrects", boxes[0] * W
+        s, rotation, offset, out, gap, W, H, density, used = _place_shapes_or_boxes(
+            uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes=method == "auto")
     else:
-        N = W
-        if callable(used):
-            if not rotate:
-                raise InputError(f"method={_name(used)} always rotates charts; use rotate=True or method='maxrects'")
-            s, rotation, offset, out, gap = used(uvs, faces, N, g)
-            used = _name(used)
-        elif rotate:
-            s, rotation, offset, out, gap = place_boxes(uvs, faces, N, g)
-        else:
-            s, rotation, offset, out, gap = _place_unrotated(uvs, faces, N, g)
-        density = s * N
+        s, rotation, offset, out, gap, used = _place_free_scale(uvs, faces, W, g, rotate, used)
+        density = s * W
     # a chart that cannot fit: the whole atlas would give the largest chart less than one texel
     if density * max(extents) < 1.0:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the largest chart "
@@ -431,6 +415,31 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
                       offset=offset, efficiency=eff, texture_size_px=W, gutter_px=g, method=used,
                       time_s=time.perf_counter() - t0, min_gap_px=gap, width_px=W, height_px=H,
                       texel_density=float(density))
+
+
+def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
+    """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the denser wins)."""
+    boxes = None
+    if try_boxes and W == H and density is None and len(uvs) <= 64:
+        boxes = place_boxes(uvs, faces, W, g) if rotate else _place_unrotated(uvs, faces, W, g)
+    s, rotation, offset, out, gap, W, H, density = _place_shapes(
+        uvs, faces, W, H, g, density, rotate, K, aspect, guess=None if boxes is None else boxes[0] * W)
+    if boxes is not None and boxes[0] > s * (1 + 1e-12):
+        s, rotation, offset, out, gap = boxes
+        return s, rotation, offset, out, gap, W, H, boxes[0] * W, "maxrects"
+    return s, rotation, offset, out, gap, W, H, density, "shape"
+
+
+def _place_free_scale(uvs, faces, N, g, rotate, used):
+    """MaxRects boxes (rotated or not) or a placer, in a square N-texel atlas at the best common scale."""
+    if callable(used):
+        if not rotate:
+            raise InputError(f"method={_name(used)} always rotates charts; use rotate=True or method='maxrects'")
+        s, rotation, offset, out, gap = used(uvs, faces, N, g)
+        return s, rotation, offset, out, gap, _name(used)
+    if rotate:
+        return (*place_boxes(uvs, faces, N, g), used)
+    return (*_place_unrotated(uvs, faces, N, g), used)
 
 
 def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, guess=None):

@@ -20,9 +20,11 @@ from uvbake.analysis.metrics import chart_distortion, distortion_summary
 from uvbake.errors import ChartError, InputError, NotDiskError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
 from uvbake.flatten.solve import parameterize_charts
-from uvbake.mesh.arrays import rigid_align
+from uvbake.io.load import load_mesh
+from uvbake.mesh.arrays import check_arrays, rigid_align
 from uvbake.mesh.charts import Chart, check_chart, split_charts
 from uvbake.mesh.cut import cut_to_disks, seam_length
+from uvbake.mesh.repair import repair as repair_mesh
 from uvbake.mesh.topology import face_adjacency
 
 BAKE_MODES = (None, "checker", "vertex-colors")
@@ -147,26 +149,8 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     options = dict(options=solve_options, callback=callback)
     note = progress or (lambda stage, done, total: None)
 
-    from uvbake.io.load import load_mesh
-
     t = time.perf_counter()
-    mesh = load_mesh(source, face_labels=face_labels)
-    V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
-    # NaN or infinite coordinates are corrupt data, not a reconstruction artefact: refuse them
-    # (naming the vertices) rather than silently dropping faces
-    from uvbake.mesh.arrays import check_arrays
-
-    check_arrays(V, F, where=str(mesh.source))
-    repair_report = None
-    if repair:
-        from uvbake.mesh.repair import repair as repair_mesh
-
-        rep = repair_mesh(V, F)
-        repair_report = rep.to_dict()
-        if rep.actions:
-            labels = None if labels is None else labels[rep.face_index]
-            colors = None if colors is None else colors[rep.vertex_index]
-            V, F = rep.V, rep.F
+    mesh, V, F, labels, colors, repair_report = _load_repaired(source, face_labels, repair)
     if bake == "vertex-colors" and colors is None:
         raise InputError(f"{mesh.source}: has no vertex colours to bake; use --bake-mode checker")
     timings["load_repair_s"] = time.perf_counter() - t
@@ -255,6 +239,23 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
         "timings": timings,
     }
     return UnwrapResult(V, F, corner_uv, charts, results, chart_ids, image, colors, report)
+
+
+def _load_repaired(source, face_labels, repair):
+    """The mesh, its arrays after repair (when asked), and the repair report (None when not asked)."""
+    mesh = load_mesh(source, face_labels=face_labels)
+    V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
+    # NaN or infinite coordinates are corrupt data, not a reconstruction artefact: refuse them
+    # (naming the vertices) rather than silently dropping faces
+    check_arrays(V, F, where=str(mesh.source))
+    if not repair:
+        return mesh, V, F, labels, colors, None
+    rep = repair_mesh(V, F)
+    if rep.actions:
+        labels = None if labels is None else labels[rep.face_index]
+        colors = None if colors is None else colors[rep.vertex_index]
+        V, F = rep.V, rep.F
+    return mesh, V, F, labels, colors, rep.to_dict()
 
 
 def check_texture(texture_size_px, gutter_px, texel_density=None):

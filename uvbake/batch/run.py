@@ -19,11 +19,13 @@ from uvbake.batch.task import (
     write_marker,
 )
 from uvbake.errors import InputError
+from uvbake.flatten.options import DEFAULTS
 
 #: unwrap options a batch accepts, with uvbake.unwrap's defaults (bake: a checker, for the previews)
-UNWRAP_DEFAULTS = dict(alpha=0.5, init="lscm", backend="lm", tol=1e-8, max_iter=1000, seed=0,
-                       texture_size_px=1024, gutter_px=4, bake="checker", auto_cut=True, repair=True,
-                       guarantee=True, continuation=True, max_splits=256)
+UNWRAP_DEFAULTS = dict(alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS.backend, tol=DEFAULTS.tol,
+                       max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed, texture_size_px=1024, gutter_px=4,
+                       bake="checker", auto_cut=True, repair=True, guarantee=True,
+                       continuation=DEFAULTS.continuation, max_splits=256)
 #: what else a batch writes per asset
 OUTPUT_DEFAULTS = dict(format="obj", preview_size_px=96, atlas_image="auto", atlas_size_px=256)
 DEFAULT_TIMEOUT_S = 600.0
@@ -43,9 +45,9 @@ def normalise_options(**options):
     Raises InputError naming the option (by its Python name) for anything not usable.
     """
     from uvbake import __version__
-    from uvbake.atlas.pipeline import BAKE_MODES, _check_texture
+    from uvbake.atlas.pipeline import BAKE_MODES, check_texture
     from uvbake.batch.child import ATLAS_IMAGES
-    from uvbake.flatten.solve import _check_options
+    from uvbake.flatten.options import SolveOptions
 
     unknown = sorted(set(options) - set(UNWRAP_DEFAULTS) - set(OUTPUT_DEFAULTS))
     if unknown:
@@ -53,9 +55,10 @@ def normalise_options(**options):
                          f"{', '.join(sorted(UNWRAP_DEFAULTS) + sorted(OUTPUT_DEFAULTS))}")
     u = {k: options.get(k, v) for k, v in UNWRAP_DEFAULTS.items()}
     o = {k: options.get(k, v) for k, v in OUTPUT_DEFAULTS.items()}
-    u["alpha"] = _check_options(u["alpha"], u["init"], u["backend"], u["tol"], u["max_iter"])
+    u["alpha"] = SolveOptions(alpha=u["alpha"], init=u["init"], backend=u["backend"], tol=u["tol"],
+                              max_iter=u["max_iter"]).alpha
     u["tol"], u["max_iter"], u["seed"] = float(u["tol"]), int(u["max_iter"]), int(u["seed"])
-    _check_texture(u["texture_size_px"], u["gutter_px"])
+    check_texture(u["texture_size_px"], u["gutter_px"])
     u["texture_size_px"], u["gutter_px"] = int(u["texture_size_px"]), int(u["gutter_px"])
     if u["bake"] not in BAKE_MODES:
         raise InputError(f"bake={u['bake']!r} is not one of None, 'checker', 'vertex-colors'")

@@ -147,17 +147,8 @@ def validate(
     # ---- raster pass ----------------------------------------------------------------------------
     origin, pixel_size, rows, cols = _raster_frame(corners, atlas, res)
     Xi, Yi = _fixed_point(corners, origin, pixel_size)
-    notes = []
-    spans = _spans(Xi, Yi, rows, cols, max_rows=budgets.MAX_SPAN_ROWS)
-    if spans is None:
-        pix_keys = pix_of_key = np.zeros(0, np.int64)
-        covered_px, raster_complete = 0, False
-        notes.append(f"raster skipped: the triangles span more than {budgets.MAX_SPAN_ROWS} pixel rows")
-    else:
-        tri, row, x0, x1 = spans
-        pix_keys, pix_of_key, covered_px, raster_complete = _raster_pairs(tri, row, x0, x1, rows, cols, m)
-        if not raster_complete:
-            notes.append("raster pairs truncated: too many pixels claimed more than once")
+    notes: list[str] = []
+    spans, pix_keys, pix_of_key, covered_px, raster_complete = _raster_pass(Xi, Yi, rows, cols, m, notes)
     raster_keys = _sorted_unique(pix_keys)
     t = lap("raster", t)
 
@@ -263,6 +254,19 @@ def validate(
 
 # --------------------------------------------------------------------------------------------------
 # input
+
+
+def _raster_pass(Xi, Yi, rows, cols, m, notes):
+    """Spans (None past the budget), pixel-sharing pair keys and their pixels, covered pixels, completeness."""
+    spans = _spans(Xi, Yi, rows, cols, max_rows=budgets.MAX_SPAN_ROWS)
+    if spans is None:
+        notes.append(f"raster skipped: the triangles span more than {budgets.MAX_SPAN_ROWS} pixel rows")
+        return None, np.zeros(0, np.int64), np.zeros(0, np.int64), 0, False
+    tri, row, x0, x1 = spans
+    pix_keys, pix_of_key, covered_px, raster_complete = _raster_pairs(tri, row, x0, x1, rows, cols, m)
+    if not raster_complete:
+        notes.append("raster pairs truncated: too many pixels claimed more than once")
+    return spans, pix_keys, pix_of_key, covered_px, raster_complete
 
 
 def _prepare(uv, F):

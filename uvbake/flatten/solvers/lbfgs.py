@@ -14,17 +14,13 @@ search (a trial point of the line search that is not better is not an iteration,
 evaluation). ``history`` holds F at x0 and then after every iteration, ``max_iter`` caps iterations,
 and the callback is called once per iteration. ``evaluations`` counts every F+gradient evaluation.
 
-Preconditioning. Plain L-BFGS needs thousands of iterations here (halftunnel: ~3,500 from lscm at
-alpha 0.1; camelhead: gradient norm still 40 after 5,800 iterations and 90 s), because the Hessian's
-conditioning follows the mesh (a graph-Laplacian-like operator). nlopt's LD_LBFGS takes no
-preconditioner, so nlopt runs in the variables y of x = x_ref + T y with T T^T = (H(x_ref) + mu I)^-1,
-H the Hessian of F (sparse Cholesky, once per refresh); its objective is F(x_ref + T y) and its
-gradient T^T grad F. This is only a change of coordinates: F, grad F, the stopping rule and the
-history stay in x, and the end point is still where grad F vanishes, so a cross-check against LM
-still tests F and its gradient (a wrong gradient sends L-BFGS elsewhere, tests/test_crosscheck.py).
-The preconditioner is rebuilt at the best point every ``refresh_every`` iterations (the map moves
-far from the start at larger alpha and a stale H preconditions poorly: camelhead alpha 0.5 stalled
-at ||g|| ~ 4e-3 after 2,000 iterations without refresh, and converges in ~320 with it).
+Preconditioning. Plain L-BFGS needs thousands of iterations here (the Hessian's conditioning follows
+the mesh), and nlopt's LD_LBFGS takes no preconditioner, so nlopt runs in the variables y of
+x = x_ref + T y with T T^T = (H(x_ref) + mu I)^-1, H the Hessian of F (sparse Cholesky, once per
+refresh); its objective is F(x_ref + T y) and its gradient T^T grad F. This is only a change of
+coordinates: F, grad F, the stopping rule and the history stay in x, so a cross-check against LM still
+tests F and its gradient. The preconditioner is rebuilt at the best point every ``refresh_every``
+iterations.
 
 Precision near the optimum. A line search compares values of F; once F's decrease per step falls
 below F's rounding error (about 1e-16 |F|, i.e. 1e-13 on a chart with F ~ 1e3) the search cannot tell
@@ -36,7 +32,7 @@ is lost; at most ``restarts`` times, and only while restarts still lower the gra
 reasons are reported as they happened: ``stop_reason`` is the final one, ``nlopt_results`` lists
 every nlopt run's end.
 
-Measured (bench/backends.py, lscm starts, tol 1e-8): see the issue-3 report.
+Measurements behind the constants: docs/decisions/lbfgs.md (bench/backends.py).
 """
 
 from __future__ import annotations
@@ -54,31 +50,20 @@ from uvbake.flatten.solvers.linalg import (
 )
 from uvbake.flatten.solvers.result import MESSAGES, SolveResult, Status
 
-#: L-BFGS memory (stored correction pairs). Preconditioned, from lscm starts to ||g|| < 1e-8
-#: (iterations): halftunnel alpha 0.1: m=10 36, m=20 30; camelhead alpha 0.1: m=5 153, 10 133, 20 134,
-#: 30 125; alpha 0.5 (refresh 100): m=5 347, 10 318, 20 308, 30 329. The memory matters little once
-#: preconditioned; 20 is kept (bench/backends.py --storage).
+#: L-BFGS memory (stored correction pairs); docs/decisions/lbfgs.md
 VECTOR_STORAGE = 20
 
 #: Default change of variables (see :func:`_preconditioner`).
 PRECONDITION = "cholesky"
 
 
-#: nlopt sees SCALE * (F - F_ref). Luksan's L-BFGS (nlopt's LD_LBFGS) ends with "success" on its own
-#: built-in gradient test (max |component| <= 1e-8, not settable through nlopt's API), which would
-#: stop it short of our rule; scaling the objective moves that test out of the way. L-BFGS is not
-#: quite invariant to the scale: its first step (steepest descent, unit step) grows with it. In the
-#: preconditioned variables a unit step is about a Newton step, so the scale starts at 1 and is
-#: raised SCALE_STEP-fold, up to SCALE_MAX, each time nlopt reports "success" short of our tolerance.
+#: nlopt sees SCALE * (F - F_ref): a larger scale moves Luksan's built-in gradient test (max |g_i| <= 1e-8)
+#: out of the way of ours; raised SCALE_STEP-fold up to SCALE_MAX on each early "success" (docs/decisions/lbfgs.md)
 SCALE = 1.0
 SCALE_STEP = 1e3
 SCALE_MAX = 1e12
 
-#: Iterations per nlopt run before the preconditioner is rebuilt at the best point (the map moves far
-#: from the start at larger alpha, and a stale H(x0) preconditions poorly). Measured from lscm starts
-#: (iterations / seconds to ||g|| < 1e-8, a loaded 2-core machine): camelhead alpha 0.5: never
-#: refreshed: ||g|| 4e-3 after 2,000; 200: 461 / 8.7 s; 100: 308 / 6.2 s; 50: 276 / 5.4 s;
-#: 25: 273 / 5.7 s. beetle alpha 0.1: 100: 313 / 14.5 s; 50: 360 / 11.4 s.
+#: Iterations per nlopt run before the preconditioner is rebuilt at the best point (docs/decisions/lbfgs.md)
 REFRESH_EVERY = 50
 
 
@@ -135,12 +120,9 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
     f0, g0 = energy.value_and_gradient(energy.to_uv(x0, uv_fixed))
     st = dict(x=x0.copy(), f=float(f0), g=float(np.linalg.norm(g0)), it=0, ev=1, stop=None)
     history = [st["f"]]
-    if not np.isfinite(st["f"]):
-        return x0, _info(st, history, Status.NON_FINITE_START, tol, [], 0, t0)
-    if st["g"] < tol:
-        return x0, _info(st, history, Status.CONVERGED, tol, [], 0, t0)
-    if max_iter == 0 or k == 0:
-        return x0, _info(st, history, Status.MAX_ITER, tol, [], 0, t0)
+    early = _stop_before_start(st, tol, max_iter, k)
+    if early is not None:
+        return x0, _info(st, history, early, tol, [], 0, t0)
 
     kind = PRECONDITION if precondition is None else precondition
     refresh = REFRESH_EVERY if refresh_every is None else int(refresh_every)
@@ -245,6 +227,17 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
     stop = (st["stop"], MESSAGES[st["stop"]]) if st["stop"] is not None else reasons[-1]
     ends = [message for status, message in reasons if status != Status.REFRESH]
     return st["x"], _info(st, history, stop, tol, ends, n_restart, t0, pc["name"], pc["builds"])
+
+
+def _stop_before_start(st, tol, max_iter, k):
+    """Why no nlopt run is needed at the start (None: run)."""
+    if not np.isfinite(st["f"]):
+        return Status.NON_FINITE_START
+    if st["g"] < tol:
+        return Status.CONVERGED
+    if max_iter == 0 or k == 0:
+        return Status.MAX_ITER
+    return None
 
 
 def _preconditioner(energy, x0, uv_fixed, kind):

@@ -6,10 +6,10 @@ delta = -(H + lambda I)^-1 grad F. The damping follows the gain ratio
 rho = (F(x) - F(x + delta)) / (predicted decrease of the quadratic model), with Nielsen's update
 (H. B. Nielsen, "Damping parameter in Marquardt's method", IMM-REP-1999-05): on success
 lambda *= max(1/10, 1 - (2 rho - 1)^3), on failure lambda *= nu, nu *= 2. Two additions, measured
-below: a memory of where H + lambda I was last indefinite, and backtracking along a rejected step.
+a memory of where H + lambda I was last indefinite, and backtracking along a rejected step.
 The actual decrease is computed term by term (DistortionEnergy.change), so the gain ratio stays
 meaningful when the decrease is below F's rounding error. The matrix pattern never changes, so its
-symbolic factorisation is computed once.
+symbolic factorisation is computed once. Constants: docs/decisions/lm-damping.md.
 """
 
 from __future__ import annotations
@@ -21,22 +21,11 @@ import numpy as np
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
 from uvbake.flatten.solvers.result import SolveResult, Status
 
-# Damping constants, chosen by measurement (bench/solver.py; iterations from LSCM starts on
-# camelhead alpha 0.1 / 0.5 and beetle alpha 0.1 / 0.5, and from a random start on camelhead 0.5):
-#   Nielsen as published (shrink >= 1/3, no memory, no backtracking)   11 / 32 / 47 / 45 / 109
-#   + damping memory and shrink >= 1/10                                 7 / 32 / 44 / 53 / 108
-#   + backtracking (this setting)                                        7 / 32 / 31 / 47 / 101
-# MIN_SHRINK: an accepted step lowers lambda at most tenfold (Marquardt's own factor).
-# Damping memory: after an accepted step lambda is not lowered below INDEF_MARGIN times the largest
-# lambda at which H + lambda I was recently found indefinite; the memory decays by INDEF_DECAY per
-# accepted step, so lambda can still go to zero near a minimum. Longer memory (decay 0.8 or 0.9)
-# over-damps: 51-111 iterations on the same cases.
-# BACKTRACK: a rejected step along a paid-for direction is halved up to this many times (Armijo)
-# before the factorisation is counted as wasted.
-# Also measured and not adopted: Marquardt's scaled damping H + lambda diag(H) (lambda0 = 0.01).
-# Over bench/solver.py's 24 cases it needed 2,024 iterations against 1,936 for H + lambda I; it
-# brought beetle alpha 0.5 from 48 to 39 but beetle alpha 0.9 from 100 to 279. Larger INDEF_JUMP
-# (8, 16) or TAU (1e-4) moved beetle alpha 0.5 only within 47-56.
+# Damping constants, chosen by measurement (docs/decisions/lm-damping.md, bench/solver.py).
+# MIN_SHRINK: an accepted step lowers lambda at most tenfold. Damping memory: after an accepted step
+# lambda stays above INDEF_MARGIN times the largest lambda recently found indefinite, a memory that
+# decays by INDEF_DECAY per accepted step. BACKTRACK: halvings of a rejected step (Armijo) before the
+# factorisation counts as wasted.
 MIN_SHRINK = 0.1
 INDEF_MARGIN = 1.5
 INDEF_DECAY = 0.5
@@ -44,9 +33,8 @@ INDEF_JUMP = 4.0
 BACKTRACK = 4
 TAU = 1e-6
 # Second-order test at convergence: a stationary point where H + SADDLE_EPS * max(diag H) * I is not
-# positive definite is a saddle (measured: halftunnel at alpha 0.5 from LSCM, LM stopped at F 102.72
-# with two negative Hessian eigenvalues, while L-BFGS reached 96.42). LM then steps along the most
-# negative curvature direction and goes on, at most MAX_ESCAPES times.
+# positive definite is a saddle; LM steps along the most negative curvature and goes on, at most
+# MAX_ESCAPES times (docs/decisions/lm-damping.md).
 SADDLE_EPS = 1e-9
 MAX_ESCAPES = 20
 
