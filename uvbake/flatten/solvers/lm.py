@@ -15,6 +15,7 @@ symbolic factorisation is computed once. Constants: docs/decisions/lm-damping.md
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -103,44 +104,15 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
             continue
         it += 1
         accepted = False
-        indefinite = True        # until a factorisation succeeds
-        backtracked = False
-        reason = "indefinite"    # for the callback only
-        try:
-            solver.factor(H, lam)
-            delta = -solver.solve(g)
-        except NotPositiveDefinite:
-            delta = None
-        if delta is not None and np.all(np.isfinite(delta)):
-            Hd = H @ delta
-            pred = -(g @ delta + 0.5 * delta @ Hd)
-            x_new = x + delta
-            # the step actually taken (x_new - x is exact in floating point), fixed unknowns at 0
-            duv = energy.to_uv(x_new - x, zero_uv)
-            actual = -energy.change(energy.to_uv(x, uv_fixed), duv)
-            n_eval += 1
-            indefinite = False
-            rho = actual / pred if pred > 0 else -1.0
-            reason = f"gain {rho:.3g}"
-            if not (rho > 0 and actual > 0):
-                # the factorisation is paid for and delta is a descent direction (H + lambda I is
-                # positive definite): try shorter steps along it, Armijo's rule, before giving up
-                slope = float(g @ delta)
-                t = 1.0
-                for _ in range(BACKTRACK):
-                    t *= 0.5
-                    x_try = x + t * delta
-                    d_try = -energy.change(energy.to_uv(x, uv_fixed), energy.to_uv(x_try - x, zero_uv))
-                    n_eval += 1
-                    if d_try > -1e-4 * t * slope and d_try > 0:
-                        x_new, actual, rho = x_try, d_try, 0.0
-                        delta = x_try - x
-                        backtracked = True
-                        reason = f"backtracked to {t:g}"
-                        break
-            if actual > 0 and (rho > 0 or backtracked):
+        step = _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv)
+        indefinite = step is None          # H + lambda I was not positive definite (or the step not finite)
+        reason = "indefinite" if step is None else step.reason     # for the callback only
+        if step is not None:
+            n_eval += step.evaluations
+            rho, delta = step.rho, step.delta
+            if step.actual > 0 and (rho > 0 or step.backtracked):
                 accepted = True
-                x = x_new
+                x = step.x_new
                 f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
                 gnorm = float(np.linalg.norm(g))
                 lam = max(lam * max(MIN_SHRINK, 1.0 - (2.0 * rho - 1.0) ** 3), lam_min,
@@ -185,6 +157,56 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
                           converged=bool(gnorm < tol), history=np.asarray(history), status=stop,
                           solve_time_s=time.perf_counter() - t0,
                           extra=dict(linear_solver=solver.name, saddle_escapes=escapes))
+
+
+@dataclass
+class _Step:
+    x_new: np.ndarray
+    delta: np.ndarray
+    actual: float
+    rho: float
+    backtracked: bool
+    evaluations: int
+    reason: str
+
+
+def _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv):
+    """The damped Newton step from x, backtracked along its direction when it does not decrease F;
+    None when H + lam I is not positive definite (or the step is not finite)."""
+    try:
+        solver.factor(H, lam)
+        delta = -solver.solve(g)
+    except NotPositiveDefinite:
+        return None
+    if not np.all(np.isfinite(delta)):
+        return None
+    Hd = H @ delta
+    pred = -(g @ delta + 0.5 * delta @ Hd)
+    x_new = x + delta
+    # the step actually taken (x_new - x is exact in floating point), fixed unknowns at 0
+    duv = energy.to_uv(x_new - x, zero_uv)
+    actual = -energy.change(energy.to_uv(x, uv_fixed), duv)
+    n_eval = 1
+    rho = actual / pred if pred > 0 else -1.0
+    reason = f"gain {rho:.3g}"
+    backtracked = False
+    if not (rho > 0 and actual > 0):
+        # the factorisation is paid for and delta is a descent direction (H + lambda I is
+        # positive definite): try shorter steps along it, Armijo's rule, before giving up
+        slope = float(g @ delta)
+        t = 1.0
+        for _ in range(BACKTRACK):
+            t *= 0.5
+            x_try = x + t * delta
+            d_try = -energy.change(energy.to_uv(x, uv_fixed), energy.to_uv(x_try - x, zero_uv))
+            n_eval += 1
+            if d_try > -1e-4 * t * slope and d_try > 0:
+                x_new, actual, rho = x_try, d_try, 0.0
+                delta = x_try - x
+                backtracked = True
+                reason = f"backtracked to {t:g}"
+                break
+    return _Step(x_new, delta, actual, rho, backtracked, n_eval, reason)
 
 
 def _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax):
