@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from uvbake.errors import InputError, SolverError
 from uvbake.flatten.solvers.linalg import is_positive_definite
-from uvbake.mesh.arrays import rigid_align
+from uvbake.mesh.arrays import rigid_align, unit_scale
 
 #: Second-order test: H + SADDLE_SHIFT * max(diag H) * I must be positive definite at a minimum
 #: (the gauge directions give eigenvalues ~1e-14 max diag H, a real saddle -1e-2 and below).
@@ -122,11 +122,9 @@ def is_local_minimum(V, F, uv, alpha):
         return None
     from uvbake.flatten.energy import DistortionEnergy
 
-    V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    edges = V[F[:, [1, 2, 0]]] - V[F]
-    unit = float(np.mean(np.linalg.norm(edges, axis=2)))
-    energy = DistortionEnergy((V - V.mean(axis=0)) / unit, F, alpha=alpha)
+    Vn, unit = unit_scale(V, F)
+    energy = DistortionEnergy(Vn, F, alpha=alpha)
     _, _, H = energy.evaluate(np.asarray(uv, dtype=np.float64) / unit)
     hmax = float(np.max(np.abs(H.data[energy.diagonal_slots])))
     return _positive_definite(H, SADDLE_SHIFT * hmax)
