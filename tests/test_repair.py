@@ -86,7 +86,7 @@ def test_specks_are_dropped_with_a_warning():
     assert len(repair(V2, F2).F) == len(F2)
 
 
-def test_duplicated_seam_vertices_are_welded_into_one_piece():
+def test_duplicated_seam_vertices_are_welded_into_one_piece_when_asked_and_kept_as_a_cut_by_default():
     st, F = grid(9, 7)
     V = np.column_stack([st, 0.2 * np.sin(3 * st[:, 0])])
     # the left half keeps the middle column; the right half gets its own copies of it
@@ -99,12 +99,25 @@ def test_duplicated_seam_vertices_are_welded_into_one_piece():
     F2 = F.copy()
     F2[right] = remap[F2[right]]
     assert topology(F2, len(V2)).n_components == 2
-    res = repair(V2, F2)
+    kept = repair(V2, F2)                      # the user's cut is their seam: nothing welded
+    assert "weld_vertices" not in _kinds(kept) and topology(kept.F, len(kept.V)).n_components == 2
+    res = repair(V2, F2, weld=True)
     assert _kinds(res)["weld_vertices"]["count"] == len(copy)
     topo = check_chart(res.V, res.F)
     assert topo.n_components == 1 and topo.n_boundary_loops == 1
     assert len(res.V) == len(V)
     _assert_maps_back(res, V2, F2)
+
+
+def test_a_triangle_soup_is_welded_by_default():
+    st, F = grid(5, 4)
+    V = np.column_stack([st, 0.1 * st[:, 0] ** 2])
+    Vs, Fs = V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)   # every triangle its own corners
+    res = repair(Vs, Fs)
+    assert _kinds(res)["weld_vertices"]["count"] > 0
+    topo = check_chart(res.V, res.F)
+    assert topo.n_components == 1 and len(res.V) == len(V)
+    assert "weld_vertices" not in _kinds(repair(Vs, Fs, weld=False))
 
 
 def test_touching_pieces_are_not_welded():

@@ -33,6 +33,10 @@ Definitions (the pipeline's JSON report and the README's tables):
 - **Seam length**: total 3D length of the *cut* interior edges of (V, F), i.e. interior edges whose two
   faces disagree on the UV of either endpoint. Boundary edges of the input are not counted (every
   method has them); for a labelled scene the edges between labelled charts are seams.
+- **Texel share** of a triangle (:func:`texel_share`): s_t = (UV area_t / UV area total) /
+  (3D area_t / 3D area total), on the packed atlas; 1 is fair, 0 is a triangle with no texels. The
+  report's ``min_texel_share``, ``area_below_quarter`` and ``area_below_sixteenth`` (the share of the
+  3D area with s_t below 1/4 and 1/16) come from :func:`texel_summary`.
 - **Packing efficiency**: total |UV area| of all triangles / area of the atlas rectangle ([0,1]^2 for
   normalised atlases); only meaningful for methods that pack, and only when nothing overlaps.
 """
@@ -253,3 +257,46 @@ def measure(V, F, uv, *, area_scale="median"):
     return MapMetrics(angle_mean=d["angle_mean"], angle_max=d["angle_max"], area=d["area"],
                       n_collapsed=d["n_collapsed"], n_charts=int(ch.max()) + 1 if len(ch) else 0,
                       n_flipped=int(len(flipped(F, C, ch))), seam_length=uv_seam_length(V, F, C))
+
+
+# ----------------------------------------------------------------------------- texel share
+def _uv_areas(corner_uv):
+    c = np.asarray(corner_uv, dtype=np.float64)
+    e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+    return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def _areas_3d(V, F):
+    X = np.asarray(V, dtype=np.float64)[np.asarray(F)]
+    return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+
+
+def texel_share(V, F, corner_uv):
+    """(m,) texel share of every triangle: its share of the UV area over its share of the 3D area.
+
+    ``corner_uv`` is (m,3,2) (per-vertex (n,2) UVs are accepted too). Triangles with zero 3D area get
+    share 1 (they need no texels)."""
+    uv = np.asarray(corner_uv, dtype=np.float64)
+    if uv.ndim == 2:
+        uv = uv[np.asarray(F)]
+    a_uv, a_3d = _uv_areas(uv), _areas_3d(V, F)
+    tot_uv, tot_3d = a_uv.sum(), a_3d.sum()
+    if tot_uv <= 0 or tot_3d <= 0:
+        return np.zeros(len(a_3d))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (a_uv / tot_uv) / (a_3d / tot_3d)
+    return np.where(a_3d > 0, s, 1.0)
+
+
+def area_below(V, F, share, threshold):
+    """Share of the 3D surface area whose texel share is below ``threshold``."""
+    a = _areas_3d(V, F)
+    return float(a[np.asarray(share) < threshold].sum() / a.sum()) if a.sum() > 0 else 0.0
+
+
+def texel_summary(V, F, corner_uv):
+    """The report's texel fields: least share and the area shares below 1/4 and 1/16 of fair."""
+    s = texel_share(V, F, corner_uv)
+    return dict(min_texel_share=float(s.min()) if len(s) else 1.0,
+                area_below_quarter=area_below(V, F, s, 0.25),
+                area_below_sixteenth=area_below(V, F, s, 1.0 / 16.0))

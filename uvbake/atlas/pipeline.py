@@ -1,12 +1,15 @@
 """``unwrap``: the whole pipeline, from a mesh to a validated, packed and baked atlas, with one report.
 
-    load -> repair -> charts (auto-cut) -> parameterize -> validate / split -> pack -> validate -> bake
+    load -> repair -> charting (labels kept; disks; distortion budget) -> solve (injective)
+         -> pack -> validate -> bake
 
-Flip- and overlap-free guarantee (``guarantee=True``). The paper's energy is kept exactly; a chart
-whose solution has flipped or overlapping triangles is split in two with a short cut separating the
-bad region (``uvbake.mesh.cut.split_where``) and both parts are solved again, until every chart
-validates. Smaller charts of a smooth surface are closer to developable, so the split recursion
-ends; a single triangle always flattens exactly, which bounds it. Every split is reported.
+Each stage is a function in its own module; this one only chains them and writes the report.
+Guarantee (``guarantee=True``): charting (:mod:`uvbake.atlas.charting`) decides the charts before
+any solve so that each one's conformal map is flip-free and gives every triangle at least
+1/max_stretch of the chart's texel density; the LM then never lets a determinant reach zero
+(:mod:`uvbake.atlas.guarantee`), and whatever still starves or overlaps is split once per bad region
+and only the parts are solved again, from the parent's map. ``guarantee=False`` is the paper's
+formulation as is (charts from labels and disk cuts only, plain LM, nothing repaired).
 """
 
 from __future__ import annotations
@@ -17,15 +20,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uvbake.analysis.metrics import chart_distortion, distortion_summary
-from uvbake.errors import ChartError, InputError, NotDiskError
+from uvbake.errors import InputError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
 from uvbake.flatten.solve import parameterize_charts
-from uvbake.io.load import load_mesh
-from uvbake.mesh.arrays import check_arrays, rigid_align
-from uvbake.mesh.charts import Chart, check_chart, split_charts
-from uvbake.mesh.cut import cut_to_disks, seam_length
-from uvbake.mesh.repair import repair as repair_mesh
-from uvbake.mesh.topology import face_adjacency
 
 BAKE_MODES = (None, "checker", "vertex-colors")
 
@@ -81,19 +78,20 @@ def _blank(size):
 
 
 def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS.backend, tol=DEFAULTS.tol,
-           max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed,
-           face_labels=None, texture_size_px=1024, gutter_px=None, bake=None, auto_cut=True,
-           repair=True, guarantee=True, max_splits=256, continuation=DEFAULTS.continuation, workers=None,
-           progress=None, callback=None, texel_density=None, mip_levels=None):
+           max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed, face_labels=None, texture_size_px=1024, gutter_px=None,
+           bake=None, auto_cut=True, repair=True, weld=None, guarantee=True, max_stretch=None, max_charts=None,
+           max_splits=256, continuation=DEFAULTS.continuation, workers=None, progress=None, callback=None,
+           texel_density=None, mip_levels=None):
     """Unwrap a mesh into a validated texture atlas.
 
     Parameters
     ----------
     source : path, (V, F) tuple, trimesh.Trimesh or Open3D mesh
     alpha, init, backend, tol, max_iter, seed, continuation
-        As in :func:`uvbake.parameterize`.
+        As in :func:`uvbake.parameterize` (``init`` is used where the charting's conformal start is
+        not: with ``guarantee=False``).
     face_labels : (m,) int array, optional
-        Per-face segment labels (overrides labels stored in the file).
+        Per-face segment labels (overrides labels stored in the file). A chart never spans two labels.
     texture_size_px : int or None
         Side of the square texture (16 to 16384); None (with ``texel_density``): the atlas grows to fit.
     gutter_px : int, optional
@@ -108,12 +106,24 @@ def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS
         Cut closed charts and charts with handles into disks (False: such charts are an error).
     repair : bool
         Repair non-manifold input (bowties, non-manifold edges, specks, duplicates) with warnings.
+    weld : bool or None
+        Weld coincident boundary vertices: None only for soup-like input, True always, False never.
+        The input's own cuts (duplicated positions along a seam) otherwise stay cuts.
     guarantee : bool
-        Split charts until no triangle is flipped and no two overlap (False: the paper's result as is).
+        No flipped, overlapping or starved triangle (False: the paper's result as is).
+    max_stretch : float, optional
+        Distortion budget (> 1, default 4): every triangle's area factor, relative to its chart's,
+        at least 1/max_stretch (charts are cut before solving so their conformal maps keep it).
+    max_charts : int, optional
+        Chart budget: charting stops cutting at this many charts (the guarantee's splits still happen).
     max_splits : int
-        Cap on splits; past it the remaining invalid charts are reported, not hidden.
+        Cap on the guarantee's splits; past it the remaining invalid charts are reported, not hidden.
+    workers : int, optional
+        Charts solved in parallel threads; the result does not depend on it.
     progress : callable, optional
-        ``progress(stage, done, total)`` with stage in {"charts", "solve", "split", "pack", "bake"}.
+        ``progress(stage, done, total)`` with stage in {"charts", "solve", "iterate", "split", "pack",
+        "bake"}: per chart decided, per chart solved and per LM iteration. An exception raised in it
+        (e.g. on Ctrl-C) stops the run between two iterations.
     callback : callable, optional
         Per-iteration solver callback (see :func:`uvbake.parameterize`).
 
@@ -131,14 +141,16 @@ def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS
     with threadpool_limits(limits=1):
         return _unwrap(source, alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
                        face_labels=face_labels, texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake,
-                       auto_cut=auto_cut, repair=repair, guarantee=guarantee, max_splits=max_splits,
-                       continuation=continuation, workers=workers, progress=progress, callback=callback,
-                       texel_density=texel_density, mip_levels=mip_levels)
+                       auto_cut=auto_cut, repair=repair, weld=weld, guarantee=guarantee, max_stretch=max_stretch,
+                       max_charts=max_charts, max_splits=max_splits, continuation=continuation, workers=workers,
+                       progress=progress, callback=callback, texel_density=texel_density, mip_levels=mip_levels)
 
 
 def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, texture_size_px, gutter_px, bake,
-            auto_cut, repair, guarantee, max_splits, continuation, workers, progress, callback, texel_density,
-            mip_levels):
+            auto_cut, repair, weld, guarantee, max_stretch, max_charts, max_splits, continuation, workers,
+            progress, callback, texel_density, mip_levels):
+    from uvbake.atlas.charting import DEFAULT_MAX_STRETCH, check_budget
+
     t0 = time.perf_counter()
     timings = {}
     solve_options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
@@ -146,58 +158,59 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     if bake not in BAKE_MODES:
         raise InputError(f"bake={bake!r} is not one of None, 'checker', 'vertex-colors'")
     check_texture(texture_size_px, gutter_px, texel_density)
-    options = dict(options=solve_options, callback=callback)
+    max_stretch, max_charts = check_budget(DEFAULT_MAX_STRETCH if max_stretch is None else max_stretch,
+                                           max_charts)
+    if weld not in (None, True, False):
+        raise InputError(f"weld={weld!r} must be True, False or None (weld only soup-like input)")
     note = progress or (lambda stage, done, total: None)
 
+    def per_iteration(info):
+        note("iterate", info["iteration"], max_iter)
+        return callback(info) if callback is not None else None
+
+    options = dict(options=solve_options, callback=per_iteration)
+
     t = time.perf_counter()
-    mesh, V, F, labels, colors, repair_report = _load_repaired(source, face_labels, repair)
+    V, F, labels, colors, source_name, repair_report = _load(source, face_labels, repair, weld)
     if bake == "vertex-colors" and colors is None:
-        raise InputError(f"{mesh.source}: has no vertex colours to bake; use --bake-mode checker")
+        raise InputError(f"{source_name}: has no vertex colours to bake; use --bake-mode checker")
     timings["load_repair_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    charts, cuts = _disk_charts(V, F, labels, auto_cut=auto_cut)
+    if guarantee:
+        from uvbake.atlas.charting import make_charts
+
+        charts, starts, chart_log = make_charts(V, F, labels, max_stretch=max_stretch, max_charts=max_charts,
+                                                auto_cut=auto_cut, progress=note)
+    else:
+        from uvbake.atlas.charting import disk_charts
+
+        charts, cuts = disk_charts(V, F, labels, auto_cut=auto_cut)
+        for i, c in enumerate(charts):
+            c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
+        starts, chart_log = None, dict(cuts=cuts, budget_cuts=[], over_budget=[], conformal_solves=0)
+        note("charts", len(charts), len(charts))
     n_charts_input = len(charts)
     timings["charts_s"] = time.perf_counter() - t
-    note("charts", len(charts), len(charts))
 
     t = time.perf_counter()
-    results = parameterize_charts(charts, workers=workers,
-                                  progress=lambda d, n, r: note("solve", d, n), **options)
-    timings["solve_s"] = time.perf_counter() - t
-    unconstrained = _distortion_summary(charts, results)
-
-    t = time.perf_counter()
-    splits, merges = [], []
+    splits = []
     if guarantee:
-        charts, results, splits, known_invalid = _split_until_valid(
-            charts, results, options, max_splits=max_splits, workers=workers, note=note)
-        if splits:
-            # merging may add at most 30% to the time solving and splitting took (camelhead at
-            # alpha 0.5: 17 -> 6 charts with no limit, but 97 s instead of 17 s)
-            budget_s = max(1.0, 0.3 * (time.perf_counter() - t + timings["solve_s"]))
-            charts, results, merges = _merge_back(V, F, charts, results, options, note=note, budget_s=budget_s,
-                                                  known_invalid=known_invalid)
-    timings["split_s"] = time.perf_counter() - t
+        from uvbake.atlas.guarantee import equalise_density, solve_valid
 
-    from uvbake.atlas.pack import corner_uvs, pack_charts
+        charts, results, splits = solve_valid(charts, starts, options, max_stretch=max_stretch, workers=workers,
+                                              max_splits=max_splits, note=note)
+        for c, r in zip(charts, results):
+            equalise_density(c, r)
+    else:
+        results = parameterize_charts(charts, workers=workers,
+                                      progress=lambda d, n, r: note("solve", d, n), **options)
+    timings["solve_s"] = time.perf_counter() - t
 
-    t = time.perf_counter()
-    packed = pack_charts([r.uv for r in results], [c.F for c in charts], texture_size_px=texture_size_px,
-                         gutter_px=gutter_px, texel_density=texel_density, mip_levels=mip_levels)
+    packed, corner_uv, chart_ids, verdict = _pack_and_validate(V, F, charts, results, timings, dict(
+        texture_size_px=texture_size_px, gutter_px=gutter_px, texel_density=texel_density, mip_levels=mip_levels))
     texture_size_px, gutter_px = packed.width_px, packed.gutter_px      # grown, or derived from mip_levels
-    corner_uv = corner_uvs(packed, [c.F for c in charts], [c.face_index for c in charts], len(F))
-    timings["pack_s"] = time.perf_counter() - t
     note("pack", 1, 1)
-
-    from uvbake.validate.core import validate
-
-    t = time.perf_counter()
-    chart_ids = np.empty(len(F), np.int64)
-    for i, c in enumerate(charts):
-        chart_ids[c.face_index] = i
-    verdict = validate(corner_uv, F, chart_ids=chart_ids, resolution_px=texture_size_px)
-    timings["validate_s"] = time.perf_counter() - t
 
     image = None
     t = time.perf_counter()
@@ -213,26 +226,33 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     timings["bake_s"] = time.perf_counter() - t
     timings["total_s"] = time.perf_counter() - t0
 
+    from uvbake.analysis.metrics import texel_summary
+
+    texels = texel_summary(V, F, corner_uv)
     report = {
-        "input": mesh.source,
+        "input": source_name,
         "vertices": int(len(V)),
         "triangles": int(len(F)),
         "options": solve_options.report()
         | dict(texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake, auto_cut=auto_cut,
-               repair=repair, guarantee=guarantee, texel_density=texel_density, mip_levels=mip_levels),
+               repair=repair, weld=weld, guarantee=guarantee, max_stretch=max_stretch, max_charts=max_charts,
+               texel_density=texel_density, mip_levels=mip_levels),
         "repair": repair_report,
         "charts_input": n_charts_input,
         "charts_final": len(charts),
-        "cuts": cuts,
+        "cuts": chart_log["cuts"],
+        "budget_cuts": chart_log["budget_cuts"],
+        "over_budget": chart_log["over_budget"],
         "splits": splits,
-        "merges": merges,
-        "seam_length_added": float(sum(c["seam_length"] for c in cuts) + sum(s["seam_length"] for s in splits)
-                                   - sum(m["seam_length"] for m in merges)),
-        "distortion": {"unconstrained": unconstrained, "final": _distortion_summary(charts, results)},
+        "seam_length_added": float(sum(c["seam_length"] for c in chart_log["cuts"])
+                                   + sum(c.get("seam_length", 0.0) for c in chart_log["budget_cuts"])
+                                   + sum(s["seam_length"] for s in splits)),
+        "distortion": {"final": _distortion_summary(charts, results)},
         "charts": [dict(name=c.name, label=c.label, triangles=int(len(c.F)),
                         **_distortion(c, r), **r.to_dict()) for c, r in zip(charts, results)],
         "atlas": dict(texture_size_px=texture_size_px, gutter_px=gutter_px, **_pack_summary(packed),
                       validation=verdict.to_dict()),
+        **texels,
         "valid": bool(verdict.valid),
         "all_converged": bool(all(r.converged for r in results)),
         "n_flipped_total": int(sum(r.n_flipped for r in results)),
@@ -241,21 +261,45 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     return UnwrapResult(V, F, corner_uv, charts, results, chart_ids, image, colors, report)
 
 
-def _load_repaired(source, face_labels, repair):
-    """The mesh, its arrays after repair (when asked), and the repair report (None when not asked)."""
+def _load(source, face_labels, repair, weld):
+    """Load and (optionally) repair: V, F, labels, colours, the source's name and the repair report."""
+    from uvbake.io.load import load_mesh
+    from uvbake.mesh.arrays import check_arrays
+
     mesh = load_mesh(source, face_labels=face_labels)
     V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
     # NaN or infinite coordinates are corrupt data, not a reconstruction artefact: refuse them
     # (naming the vertices) rather than silently dropping faces
     check_arrays(V, F, where=str(mesh.source))
-    if not repair:
-        return mesh, V, F, labels, colors, None
-    rep = repair_mesh(V, F)
-    if rep.actions:
-        labels = None if labels is None else labels[rep.face_index]
-        colors = None if colors is None else colors[rep.vertex_index]
-        V, F = rep.V, rep.F
-    return mesh, V, F, labels, colors, rep.to_dict()
+    repair_report = None
+    if repair:
+        from uvbake.mesh.repair import repair as repair_mesh
+
+        rep = repair_mesh(V, F, weld=weld)
+        repair_report = rep.to_dict()
+        if rep.actions:
+            labels = None if labels is None else labels[rep.face_index]
+            colors = None if colors is None else colors[rep.vertex_index]
+            V, F = rep.V, rep.F
+    return V, F, labels, colors, mesh.source, repair_report
+
+
+def _pack_and_validate(V, F, charts, results, timings, pack_options):
+    """Pack the charts, then validate the packed atlas once (the report's verdict)."""
+    from uvbake.atlas.pack import corner_uvs, pack_charts
+    from uvbake.validate.core import validate
+
+    t = time.perf_counter()
+    packed = pack_charts([r.uv for r in results], [c.F for c in charts], **pack_options)
+    corner_uv = corner_uvs(packed, [c.F for c in charts], [c.face_index for c in charts], len(F))
+    chart_ids = np.empty(len(F), np.int64)
+    for i, c in enumerate(charts):
+        chart_ids[c.face_index] = i
+    timings["pack_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    verdict = validate(corner_uv, F, chart_ids=chart_ids, resolution_px=packed.width_px)
+    timings["validate_s"] = time.perf_counter() - t
+    return packed, corner_uv, chart_ids, verdict
 
 
 def check_texture(texture_size_px, gutter_px, texel_density=None):
@@ -272,191 +316,6 @@ def check_texture(texture_size_px, gutter_px, texel_density=None):
             or not 0 <= gutter_px <= limit:
         raise InputError(f"gutter_px={gutter_px!r} must be a whole number of texels from 0 to "
                          f"{limit} (an eighth of the texture)")
-
-
-def _disk_charts(V, F, labels, *, auto_cut):
-    """Charts from labels/components; closed charts and handles are cut into disks when allowed."""
-    charts = split_charts(V, F, labels, check=False)
-    out, cuts = [], []
-    for c in charts:
-        try:
-            check_chart(c.V, c.F, name=c.name)
-            out.append(c)
-            continue
-        except NotDiskError as exc:               # closed or with handles: cut it, if allowed
-            if not auto_cut:
-                raise NotDiskError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
-        sub = cut_to_disks(c.V, c.F)
-        parts = _subcharts(c, sub)
-        for p in parts:
-            check_chart(p.V, p.F, name=p.name)
-        cuts.append(dict(chart=c.name, parts=len(parts), seam_length=seam_length(c.V, c.F, sub)))
-        out.extend(parts)
-    for i, c in enumerate(out):
-        c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
-    return out, cuts
-
-
-def _subcharts(chart, sub_labels, *, with_local=False):
-    """Split ``chart`` by per-face labels into edge-connected charts mapped into the whole mesh
-    (and, with ``with_local``, each part's vertex indices in ``chart``)."""
-    parts = split_charts(chart.V, chart.F, np.asarray(sub_labels, dtype=np.int64), check=False)
-    out = [Chart(p.V, p.F, chart.vertex_map[p.vertex_map], chart.face_index[p.face_index], chart.label,
-                 f"{chart.name}.{k}") for k, p in enumerate(parts)]
-    return (out, [p.vertex_map for p in parts]) if with_local else out
-
-
-def _invalid_faces(chart, result):
-    """Flipped, degenerate and overlapping faces of a solved chart (exact check)."""
-    from uvbake.validate.core import validate
-
-    rep = validate(result.uv, chart.F, chart_ids=np.zeros(len(chart.F), np.int64), resolution_px=1024)
-    det = _dets(chart, result.uv)
-    bad = set(np.flatnonzero(det <= 0).tolist()) | set(np.asarray(rep.flipped).tolist())
-    bad |= set(np.asarray(rep.overlap_pairs).ravel().tolist())
-    return np.array(sorted(bad), dtype=np.int64), rep
-
-
-def _dets(chart, uv):
-    from uvbake.flatten.energy import jacobians, triangle_frames
-
-    _, Q, _ = triangle_frames(chart.V, chart.F)
-    return np.linalg.det(jacobians(Q, chart.F, uv))
-
-
-def _split_until_valid(charts, results, options, *, max_splits, workers, note):
-    from uvbake.mesh.cut import split_where
-
-    splits, known_invalid = [], []
-    todo = list(range(len(charts)))
-    charts, results = list(charts), list(results)
-    while todo and len(splits) < max_splits:
-        new_charts, parents, starts = [], [], []
-        for i in todo:
-            bad, rep = _invalid_faces(charts[i], results[i])
-            if len(bad) == 0:
-                continue
-            c = charts[i]
-            if len(c.F) == 1:
-                continue                      # a single triangle cannot be split further
-            sub = split_where(c.V, c.F, bad)
-            parts, local = _subcharts(c, sub, with_local=True)
-            known_invalid.append(c.face_index)
-            for p, loc in zip(parts, local):
-                # warm start from the parent's map where its restriction has nothing flipped
-                # (the split moved the bad region away from this part); otherwise a fresh start
-                uv = results[i].uv[loc]
-                starts.append(uv if np.all(_dets(p, uv) > 0) else None)
-            splits.append(dict(chart=c.name, faces=int(len(c.F)), flipped=int(len(rep.flipped)),
-                               overlapping_pairs=int(len(rep.overlap_pairs)), parts=len(parts),
-                               seam_length=seam_length(c.V, c.F, sub)))
-            parents.append(i)
-            new_charts.append(parts)
-            if len(splits) >= max_splits:
-                break
-        if not parents:
-            break
-        flat = [p for parts in new_charts for p in parts]
-        note("split", len(splits), len(splits))
-        solved = parameterize_charts(flat, workers=workers, starts=starts, **options)
-        # replace parents by their parts, keep order stable
-        replace = dict(zip(parents, new_charts))
-        solved_iter = iter(solved)
-        out_c, out_r, todo = [], [], []
-        for i, (c, r) in enumerate(zip(charts, results)):
-            if i in replace:
-                for p in replace[i]:
-                    todo.append(len(out_c))
-                    out_c.append(p)
-                    out_r.append(next(solved_iter))
-            else:
-                out_c.append(c)
-                out_r.append(r)
-        charts, results = out_c, out_r
-    return charts, results, splits, known_invalid
-
-
-def _merge_back(V, F, charts, results, options, *, note, budget_s, known_invalid=(), max_attempts_per_chart=2):
-    """Greedily re-join neighbouring charts along their longest shared seams.
-
-    Splitting decides top-down, so parts often end smaller than they need to be. Each candidate union
-    is kept only if it is still a disk with holes and its own solution validates (no flip, no overlap).
-    The longest shared seams go first: they save the most seam and bound the most similar geometry.
-    Each union starts from the two parts' maps, rigidly aligned on their shared seam vertices, and
-    the pass stops after ``budget_s`` seconds.
-    """
-
-    deadline = time.perf_counter() + budget_s
-    charts, results = list(charts), list(results)
-    merges = []
-    attempts = 0
-    budget = max_attempts_per_chart * len(charts)
-    tried = set()
-    while attempts < budget and time.perf_counter() < deadline:
-        owner = np.empty(len(F), np.int64)
-        for i, c in enumerate(charts):
-            owner[c.face_index] = i
-        fi, fj, e = face_adjacency(F, len(V))
-        a, b = owner[fi], owner[fj]
-        cross = a != b
-        if not cross.any():
-            break
-        lo, hi = np.minimum(a[cross], b[cross]), np.maximum(a[cross], b[cross])
-        length = np.linalg.norm(V[e[cross, 0]] - V[e[cross, 1]], axis=1)
-        key = lo * len(charts) + hi
-        uniq, inv = np.unique(key, return_inverse=True)
-        seam = np.bincount(inv, weights=length)
-        order = np.argsort(-seam)
-        merged = False
-        for k in order:
-            i, j = divmod(int(uniq[k]), len(charts))
-            sig = (tuple(charts[i].face_index[:3]), len(charts[i].F), tuple(charts[j].face_index[:3]), len(charts[j].F))
-            if sig in tried:
-                continue
-            tried.add(sig)
-            attempts += 1
-            faces = np.concatenate([charts[i].face_index, charts[j].face_index])
-            inside = np.zeros(len(F), bool)
-            inside[faces] = True
-            if any(inside[p].all() for p in known_invalid):
-                continue              # it would contain a chart already split for being invalid
-            vmap, local = np.unique(F[faces], return_inverse=True)
-            union = Chart(V[vmap], local.reshape(-1, 3), vmap, faces, charts[i].label, charts[i].name)
-            try:
-                check_chart(union.V, union.F, name=union.name)
-            except ChartError:
-                continue
-            start = _aligned_union_start(union, charts[i], results[i].uv, charts[j], results[j].uv)
-            res = parameterize_charts([union], starts=[start], **options)[0]
-            if len(_invalid_faces(union, res)[0]) == 0:
-                merges.append(dict(charts=[charts[i].name, charts[j].name], faces=int(len(faces)),
-                                   seam_length=float(seam[k])))
-                charts = [c for n, c in enumerate(charts) if n not in (i, j)] + [union]
-                results = [r for n, r in enumerate(results) if n not in (i, j)] + [res]
-                merged = True
-                note("merge", len(merges), len(merges))
-                break
-            if attempts >= budget or time.perf_counter() >= deadline:
-                break
-        if not merged:
-            break
-    return charts, results, merges
-
-
-def _aligned_union_start(union, ci, uvi, cj, uvj):
-    """Start map of the union of two charts: chart j's map moved rigidly (2D Kabsch, no reflection)
-    onto chart i's at their shared vertices, shared vertices averaged."""
-    shared, ii, jj = np.intersect1d(ci.vertex_map, cj.vertex_map, return_indices=True)
-    _, _, uvj_aligned = rigid_align(uvj[jj], uvi[ii], uvj)
-    pos = np.searchsorted(union.vertex_map, ci.vertex_map)
-    start = np.zeros((len(union.vertex_map), 2))
-    count = np.zeros(len(union.vertex_map))
-    start[pos] += uvi
-    count[pos] += 1
-    pos = np.searchsorted(union.vertex_map, cj.vertex_map)
-    start[pos] += uvj_aligned
-    count[pos] += 1
-    return start / count[:, None]
 
 
 def _distortion(chart, result):

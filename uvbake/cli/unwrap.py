@@ -70,8 +70,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--no-repair", action="store_true",
                    help="refuse non-manifold input instead of repairing it (bowties, specks, duplicates)")
     g.add_argument("--paper", action="store_true",
-                   help="the paper's formulation as is: no chart splitting (flips and overlaps are reported, "
-                        "not removed) and no continuation from invalid starts")
+                   help="the paper's formulation as is: charts from labels and disk cuts only, no distortion "
+                        "budget, no injective solve (flips, overlaps and starved triangles are reported, not "
+                        "removed) and no continuation from invalid starts")
+    g.add_argument("--max-stretch", type=float, default=None, metavar="S",
+                   help="distortion budget: every triangle keeps at least 1/S of its chart's texel density "
+                        "(charts are cut before solving so they can; default 4)")
+    g.add_argument("--max-charts", type=int, default=None, metavar="N",
+                   help="chart budget: stop cutting for the distortion budget at N charts (the guarantee's "
+                        "splits may still add some)")
+    g.add_argument("--weld", action="store_true",
+                   help="weld coincident boundary vertices (default: only for triangle soups; a mesh's own "
+                        "cuts stay cuts)")
     g = p.add_argument_group("atlas and texture")
     g.add_argument("--texture-size", type=int, default=None, metavar="PX",
                    help="texture side in texels (default 1024; with --texel-density the texture grows to fit)")
@@ -182,6 +192,7 @@ def _solve(args: argparse.Namespace, mode: str | None) -> Any:
                     gutter_px=args.gutter, texel_density=args.texel_density, mip_levels=args.mip_levels,
                     bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
                     guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
+                    max_stretch=args.max_stretch, max_charts=args.max_charts, weld=True if args.weld else None,
                     progress=on_stage, callback=on_iteration)
     if args.cross_check:
         result.report["cross_check"] = cross_check_charts(result.charts, result.results, alpha=args.alpha,

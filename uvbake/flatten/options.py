@@ -46,6 +46,9 @@ class SolveOptions:
     seed : int
         Seed of the random start.
     linear_solver : {"auto", "cholmod", "superlu"}
+    injective : bool
+        LM only: from a start with every det A > 0, shorten each step so no determinant reaches zero
+        (:func:`uvbake.atlas.guarantee.determinant_step_limit`); ignored for starts with flips.
     continuation : bool
         Solve invalid starts at alpha = 0.1 first (see :func:`uvbake.parameterize`).
     """
@@ -58,6 +61,7 @@ class SolveOptions:
     seed: int = 0
     linear_solver: str = "auto"
     continuation: bool = True
+    injective: bool = False
 
     def __post_init__(self) -> None:
         try:

@@ -69,8 +69,13 @@ def _run_backend(energy: DistortionEnergy, start: np.ndarray, options: SolveOpti
                  callback: Callback | None) -> tuple[np.ndarray, SolveResult]:
     x0 = energy.to_vector(start)
     if options.backend == "lm":
+        step_limit = None
+        if options.injective and np.all(energy.determinants(start) > 0):
+            from uvbake.atlas.guarantee import determinant_step_limit
+
+            step_limit = determinant_step_limit(energy, start)
         return levenberg_marquardt(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter,
-                                   linear_solver=options.linear_solver, callback=callback)
+                                   linear_solver=options.linear_solver, callback=callback, step_limit=step_limit)
     return lbfgs(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter, callback=callback)
 
 
@@ -148,6 +153,8 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     extra: dict[str, Any] = {}
     if "linear_solver" in info.extra:
         extra["linear_solver"] = info.extra["linear_solver"]
+    if options.injective:
+        extra["injective"] = bool(options.backend == "lm" and stage is None)
     if stage is not None:
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
@@ -189,7 +196,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
                  backend: str = DEFAULTS.backend, tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter,
                  seed: int = DEFAULTS.seed, uv0: np.ndarray | None = None, callback: Callback | None = None,
                  linear_solver: str = DEFAULTS.linear_solver, continuation: bool = DEFAULTS.continuation,
-                 name: str = "chart 0") -> ParamResult:
+                 injective: bool = DEFAULTS.injective, name: str = "chart 0") -> ParamResult:
     """Flatten one chart (a connected disk with holes) by minimising the paper's F.
 
     Parameters
@@ -217,6 +224,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         When the start has flipped triangles (always so for ``init="random"``) and alpha > 0.1,
         solve at alpha = 0.1 first and continue from there (reported in ``extra["continuation"]``;
         iterations of both stages are counted). False runs the paper's plain LM from the start.
+    injective : bool
+        See :class:`uvbake.flatten.options.SolveOptions`: no determinant reaches zero during the LM.
 
     Returns
     -------
@@ -225,7 +234,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         ``iterations``, ``converged``, ``n_flipped``, ``history``, ``time_s``, ``status``.
     """
     options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
-                           linear_solver=linear_solver, continuation=continuation)
+                           linear_solver=linear_solver, continuation=continuation, injective=injective)
     with _one_blas_thread():
         return solve_chart((V, F, name), options, uv0, callback)
 
@@ -289,6 +298,13 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
                 # largest charts first so the pool stays busy
                 order = sorted(range(len(items)), key=lambda i: -len(items[i][1]))
                 futures = {pool.submit(solve_chart, items[i], options, start_of(i), callback): i for i in order}
-                for fut in as_completed(futures):
-                    finish(futures[fut], fut.result())
+                try:
+                    for fut in as_completed(futures):
+                        finish(futures[fut], fut.result())
+                except BaseException:
+                    # a chart failed or the run was stopped (a callback raised, Ctrl-C): charts not
+                    # yet started are dropped instead of solved before the error reaches the caller
+                    for fut in futures:
+                        fut.cancel()
+                    raise
     return [r for r in results if r is not None]

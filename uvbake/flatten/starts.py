@@ -12,14 +12,14 @@ import scipy.sparse as sp
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy
 from uvbake.mesh.arrays import triangle_areas
-from uvbake.mesh.topology import topology
+from uvbake.mesh.topology import boundary_edges, topology
 
 INITS = ("lscm", "tutte", "random")
 
 
 def farthest_boundary_pair(V, F):
     """Two boundary vertices far apart: the farthest from an arbitrary one, then the farthest from it."""
-    bnd = np.unique(topology(F, len(V)).boundary_edges)
+    bnd = np.unique(boundary_edges(F, len(V)))
     p = bnd[np.argmax(np.linalg.norm(V[bnd] - V[bnd[0]], axis=1))]
     q = bnd[np.argmax(np.linalg.norm(V[bnd] - V[p], axis=1))]
     return int(p), int(q)

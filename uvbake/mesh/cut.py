@@ -180,8 +180,9 @@ def _harmonic(m, fi, fj, w, seeds):
 
 
 # ------------------------------------------------------------------------------------------- sweep
-def _sweep(field, fi, fj, w, mass, min_fraction, max_fraction=None):
-    """Labels (m,) in {0,1}: side 0 = the prefix of `field`'s order with the least conductance."""
+def prefix_cuts(field, fi, fj, w):
+    """Triangles in ``field``'s order, and the seam length cut[k] (k = 0..m) of every prefix of k of
+    them: the total weight ``w`` of the dual edges (fi, fj) with exactly one end in the prefix."""
     m = len(field)
     order = np.argsort(field, kind="stable")
     rank = np.empty(m, np.int64)
@@ -191,7 +192,13 @@ def _sweep(field, fi, fj, w, mass, min_fraction, max_fraction=None):
     diff = np.zeros(m + 2)
     np.add.at(diff, lo + 1, w)
     np.add.at(diff, hi + 1, -w)
-    cut = np.cumsum(diff)[: m + 1]                     # cut[k] for prefix size k = 0..m
+    return order, np.cumsum(diff)[: m + 1]
+
+
+def _sweep(field, fi, fj, w, mass, min_fraction, max_fraction=None):
+    """Labels (m,) in {0,1}: side 0 = the prefix of `field`'s order with the least conductance."""
+    m = len(field)
+    order, cut = prefix_cuts(field, fi, fj, w)
     a = np.concatenate([[0.0], np.cumsum(mass[order])])
     bal = np.minimum(a, a[-1] - a)
     k = np.arange(m + 1)

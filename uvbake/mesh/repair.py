@@ -275,7 +275,17 @@ def _orient_parity(F, n):
 
 
 # -------------------------------------------------------------------------------------------- pass
-def _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol):
+def soup_like(F, n):
+    """True when most edges are unshared: a triangle soup (every triangle with its own corners), which
+    welding repairs. A mesh the user cut on purpose has few boundary edges and keeps its cuts."""
+    if len(F) == 0:
+        return False
+    _, key = _edge_keys(F, n)
+    _, cnt = np.unique(key, return_counts=True)
+    return bool(np.count_nonzero(cnt == 1) > 0.5 * len(cnt))
+
+
+def _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol, weld=True):
     """One pass of every step; fidx/vidx give the input ids (examples are reported in them).
 
     Returns V, F, face_index, vertex_index (into the original input), actions, warnings.
@@ -294,8 +304,9 @@ def _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol):
                          f"(triangles {_list(fidx[drop])})")
             F, fidx = F[~drop], fidx[~drop]
 
-    # 2. weld coincident boundary vertices that zip boundary edges
-    if len(F):
+    # 2. weld coincident boundary vertices that zip boundary edges (a soup, or when asked: a cut the
+    #    user made, with duplicated positions along it, is their seam)
+    if len(F) and weld:
         rep = _weld(V, F, weld_tol)
         moved = np.flatnonzero(rep != np.arange(n))
         if len(moved):
@@ -426,7 +437,7 @@ def _nonmanifold_full_detach(F, n):
 
 
 # ------------------------------------------------------------------------------------------ public
-def repair(V, F, *, min_component_faces=None, weld_tol=1e-9):
+def repair(V, F, *, min_component_faces=None, weld_tol=1e-9, weld=None):
     """Repair a triangle mesh so its pieces can become charts (see the module notes for the steps).
 
     Parameters
@@ -439,6 +450,10 @@ def repair(V, F, *, min_component_faces=None, weld_tol=1e-9):
     weld_tol : float
         Boundary vertices closer than ``weld_tol`` x mean edge length count as one position
         (default 1e-9; 0 welds exactly equal positions only).
+    weld : bool or None
+        Weld coincident boundary vertices (step 2): None (default) only when the input is soup-like
+        (most edges unshared, :func:`soup_like`), True always, False never. Boundaries of a mesh
+        the user cut stay cuts unless they ask.
 
     Returns
     -------
@@ -450,10 +465,14 @@ def repair(V, F, *, min_component_faces=None, weld_tol=1e-9):
                 vertices cannot fix, naming the elements.
     """
     V, F = _check_repair_input(V, F, min_component_faces, weld_tol)
+    if weld not in (None, True, False):
+        raise InputError(f"repair: weld={weld!r} must be True, False or None (weld only soup-like input)")
     fidx, vidx = np.arange(len(F)), np.arange(len(V))
     actions, warns = [], []
+    if weld is None:
+        weld = soup_like(F, len(V))                  # decided once, on the input
     for p in range(MAX_PASSES):                       # a handful of passes to a fixed point
-        V2, F2, fi, vi, act, w = _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol)
+        V2, F2, fi, vi, act, w = _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol, weld)
         if not act:
             break
         for a in act:

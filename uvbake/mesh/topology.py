@@ -20,14 +20,25 @@ class Topology:
     boundary_edges: np.ndarray        # (b,2) int, oriented as in their triangle
 
 
+def _edges(F, n):
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.sort(he, axis=1)
+    uniq, inv, cnt = np.unique(key[:, 0] * n + key[:, 1], return_inverse=True, return_counts=True)
+    return he, uniq, he[cnt[inv] == 1]
+
+
+def boundary_edges(F, n_vertices=None):
+    """(b,2) boundary half-edges (edges of one triangle only), oriented as in their triangle: the
+    cheap part of :func:`topology`, for callers that need nothing else."""
+    F = np.asarray(F, dtype=np.int64)
+    return _edges(F, int(F.max()) + 1 if n_vertices is None else n_vertices)[2]
+
+
 def topology(F, n_vertices=None):
     """Edge counts, components, boundary loops and genus of a manifold triangle mesh."""
     F = np.asarray(F, dtype=np.int64)
     n = int(F.max()) + 1 if n_vertices is None else n_vertices
-    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.sort(he, axis=1)
-    uniq, inv, cnt = np.unique(key[:, 0] * n + key[:, 1], return_inverse=True, return_counts=True)
-    boundary = he[cnt[inv] == 1]
+    he, uniq, boundary = _edges(F, n)
     used = np.unique(F)
     adj = sp.coo_matrix((np.ones(len(he)), (he[:, 0], he[:, 1])), shape=(n, n))
     n_comp_all, lab = connected_components(adj, directed=False)

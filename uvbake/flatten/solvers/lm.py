@@ -41,7 +41,7 @@ MAX_ESCAPES = 20
 
 
 def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0=None,
-                        linear_solver="auto", callback=None):
+                        linear_solver="auto", callback=None, step_limit=None):
     """Minimise ``energy`` (a :class:`uvbake.flatten.energy.DistortionEnergy`) from the free unknowns ``x0``.
 
     Parameters
@@ -60,6 +60,11 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
     callback : callable, optional
         Called after every iteration with a dict (iteration, energy, grad_norm, damping, accepted);
         returning True stops the solve.
+
+    step_limit : callable, optional
+        ``step_limit(x, delta) -> t`` in (0, 1]: the largest fraction of ``delta`` that may be taken
+        (the injective solve of :mod:`uvbake.atlas.guarantee` keeps every det A > 0 this way). Each
+        step, and each saddle escape, is shortened to it.
 
     Returns
     -------
@@ -90,7 +95,7 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
     while it < max_iter and stop == Status.MAX_ITER:
         if gnorm < tol and it == 0:
             # a start that is already stationary still gets the second-order test
-            out = _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax)
+            out = _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax, step_limit)
             it += out["factorisations"]
             history.extend([f] * out["factorisations"])
             if out["x"] is None:
@@ -104,7 +109,7 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
             continue
         it += 1
         accepted = False
-        step = _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv)
+        step = _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv, step_limit)
         indefinite = step is None          # H + lambda I was not positive definite (or the step not finite)
         reason = "indefinite" if step is None else step.reason     # for the callback only
         if step is not None:
@@ -134,7 +139,7 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
         history.append(f)
         if gnorm < tol:
             if escapes < MAX_ESCAPES:
-                out = _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax)
+                out = _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax, step_limit)
                 it += out["factorisations"]
                 n_eval += out["evaluations"]
                 history.extend([f] * out["factorisations"])
@@ -170,7 +175,7 @@ class _Step:
     reason: str
 
 
-def _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv):
+def _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv, step_limit=None):
     """The damped Newton step from x, backtracked along its direction when it does not decrease F;
     None when H + lam I is not positive definite (or the step is not finite)."""
     try:
@@ -180,6 +185,8 @@ def _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv):
         return None
     if not np.all(np.isfinite(delta)):
         return None
+    if step_limit is not None:
+        delta = delta * step_limit(x, delta)
     Hd = H @ delta
     pred = -(g @ delta + 0.5 * delta @ Hd)
     x_new = x + delta
@@ -209,7 +216,7 @@ def _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv):
     return _Step(x_new, delta, actual, rho, backtracked, n_eval, reason)
 
 
-def _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax):
+def _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax, step_limit):
     """At a stationary point: None if H is positive definite there, else a point lower along the most
     negative curvature direction (found by inverse iteration on H + shift I with the shift just past
     where it stops being indefinite, reusing the symbolic factorisation)."""
@@ -241,6 +248,8 @@ def _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax):
     # F(x + t v) ~ F + t^2 curvature / 2 near the saddle: try steps until F decreases
     for t in (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125):
         for sign in (1.0, -1.0):
+            if step_limit is not None and step_limit(x, sign * t * v) < 1.0:
+                continue
             step = energy.to_uv(sign * t * v, zero_uv)
             out["evaluations"] += 1
             if energy.change(energy.to_uv(x, uv_fixed), step) < 0:

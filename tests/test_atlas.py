@@ -1,0 +1,170 @@
+"""The atlas stage: charting under a distortion budget, the injective solve, labels and cuts kept,
+determinism, and the texel-share guarantee on the sample scenes."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import uvbake
+from uvbake.analysis.metrics import texel_share, texel_summary
+from uvbake.atlas.charting import conformal_factor, make_charts
+from uvbake.atlas.guarantee import area_factors, smallest_positive_root
+from uvbake.mesh.charts import check_chart
+
+from meshgen import cut_cylinder, plane
+
+SCENES = Path(__file__).resolve().parent.parent / "sample_scenes"
+
+
+def finger(nu=24, nv=40, *, length=6.0, radius=0.5):
+    """A closed-end tube (a finger, open at its base): a disk that a conformal map shrinks
+    exponentially towards the tip."""
+    z = np.linspace(0.02, length, nv)
+    r = radius * np.sqrt(np.minimum(z / radius, 1.0) * (2.0 - np.minimum(z / radius, 1.0)))
+    th = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+    ring = np.stack([np.outer(r, np.cos(th)), np.outer(r, np.sin(th)), np.repeat(z[:, None], nu, 1)], -1)
+    V = np.vstack([[[0.0, 0.0, 0.0]], ring.reshape(-1, 3)])
+    idx = 1 + np.arange(nv * nu).reshape(nv, nu)
+    a, b = idx[:-1], np.roll(idx[:-1], -1, axis=1)
+    c, d = np.roll(idx[1:], -1, axis=1), idx[1:]
+    quads = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    fan = np.stack([np.zeros(nu, np.int64), np.roll(idx[0], -1), idx[0]], 1)
+    return V, np.concatenate([fan, quads]).astype(np.int64)
+
+
+def test_smallest_positive_root_matches_sampling():
+    rng = np.random.default_rng(1)
+    c0 = rng.uniform(0.1, 1, 400)
+    c1, c2 = rng.normal(size=400), rng.normal(size=400)
+    t = smallest_positive_root(c0, c1, c2)
+    ts = np.linspace(0, 5, 50001)
+    vals = c0[:, None] + c1[:, None] * ts + c2[:, None] * ts ** 2
+    first = np.where((vals <= 0).any(1), ts[np.argmax(vals <= 0, axis=1)], np.inf)
+    # the sampled first sign change lies within one sample step (1e-4) after the root
+    both = np.isfinite(first)
+    assert np.array_equal(both, t <= 5)
+    assert np.all(np.abs(first[both] - t[both]) <= 1.01e-4)
+
+
+def test_distortion_budget_cuts_a_long_protrusion_a_conformal_map_shrinks():
+    V, F = finger()
+    check_chart(V, F)
+    _, logf = conformal_factor(V, F)
+    assert np.exp(logf.min()) < 1e-3                 # the whole finger's conformal map starves the tip
+    charts, starts, log = make_charts(V, F, max_stretch=4.0)
+    assert log["budget_cuts"] and not log["over_budget"]
+    for c, uv in zip(charts, starts):
+        f = area_factors(c, uv)
+        assert f.min() >= 0.25 - 1e-12                # every chart within the budget, nothing flipped
+    res = uvbake.unwrap((V, F), alpha=0.0, texture_size_px=512)
+    s = texel_share(res.V, res.F, res.corner_uv)
+    assert res.report["valid"] and s.min() >= 1 / 16
+    assert res.report["area_below_quarter"] <= 0.005
+    # the plain formulation (one conformal chart) is what the budget prevents
+    paper = uvbake.unwrap((V, F), alpha=0.0, texture_size_px=512, guarantee=False)
+    assert paper.report["charts_final"] == 1 and paper.report["min_texel_share"] < 1e-3
+
+
+def test_texel_share_definition():
+    V, F = plane(5, 4, jitter=0.0)
+    uv = V[:, :2].copy()
+    s = texel_share(V, F, uv[F])
+    assert s.shape == (len(F),)
+    # a uniformly scaled (tilted plane projected to xy: uniform factor) map is fair everywhere
+    assert np.allclose(s, 1.0, atol=1e-12)
+    squeezed = uv[F].copy()
+    squeezed[0] = squeezed[0].mean(axis=0) + 0.1 * (squeezed[0] - squeezed[0].mean(axis=0))
+    s2 = texel_share(V, F, squeezed)
+    a3 = np.linalg.norm(np.cross(V[F][:, 1] - V[F][:, 0], V[F][:, 2] - V[F][:, 0]), axis=1)
+    share0 = a3[0] / a3.sum()
+    # triangle 0 gets 1/100 of its UV area; the others share what is left, fairly
+    assert s2[0] == pytest.approx(0.01 / (1 - share0 + 0.01 * share0), rel=1e-12)
+    assert texel_summary(V, F, squeezed)["area_below_sixteenth"] == pytest.approx(share0, rel=1e-12)
+    summary = texel_summary(V, F, uv[F])
+    assert summary["area_below_quarter"] == 0.0 and summary["min_texel_share"] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_labelled_charts_are_never_merged():
+    V, F = plane(12, 10, jitter=0.2)
+    labels = (V[F].mean(axis=1)[:, 0] > 1.0).astype(np.int64)   # two halves of a flat sheet
+    res = uvbake.unwrap((V, F), alpha=0.5, face_labels=labels, texture_size_px=256)
+    assert res.report["valid"]
+    per_chart = [np.unique(labels[c.face_index]) for c in res.charts]
+    assert all(len(u) == 1 for u in per_chart)        # no chart spans two labels
+    assert sorted({int(u[0]) for u in per_chart}) == [0, 1]
+
+
+def test_labelled_scene_keeps_a_chart_per_label():
+    from uvbake.io import load_mesh
+
+    mesh = load_mesh(str(SCENES / "scene.ply"))
+    res = uvbake.unwrap(str(SCENES / "scene.ply"), alpha=0.5, texture_size_px=256)
+    assert not res.report["repair"]["actions"]        # face indices are the file's
+    labels = mesh.face_labels
+    assert res.report["valid"]
+    seen = set()
+    for c in res.charts:
+        u = np.unique(labels[c.face_index])
+        assert len(u) == 1
+        seen.add(int(u[0]))
+    assert seen == set(np.unique(labels).tolist())
+
+
+def test_a_cut_disk_with_duplicated_seam_positions_stays_one_chart():
+    V, F = cut_cylinder(24, 8, sweep=2 * np.pi)        # the seam's two sides sit at the same positions
+    seam = np.isclose(np.arctan2(V[:, 1], V[:, 0]), 0.0, atol=1e-9) & (V[:, 0] > 0)
+    assert seam.sum() == 16                          # duplicated positions along the cut
+    res = uvbake.unwrap((V, F), alpha=0.5, texture_size_px=256)
+    assert res.report["charts_final"] == 1 and res.report["valid"]
+    assert res.report["min_texel_share"] > 0.9       # a developable strip: nearly fair everywhere
+    welded = uvbake.unwrap((V, F), alpha=0.5, texture_size_px=256, weld=True)
+    assert any(a["kind"] == "weld_vertices" for a in welded.report["repair"]["actions"])
+    assert welded.report["charts_final"] >= 2         # a tube must be cut again
+
+
+def test_same_bytes_whatever_the_number_of_workers(tmp_path):
+    out = []
+    for workers in (1, None):
+        res = uvbake.unwrap(str(SCENES / "multi_component.ply"), alpha=0.5, texture_size_px=256, workers=workers)
+        d = tmp_path / f"w{workers}"
+        d.mkdir()
+        written = res.save(d / "atlas.obj")
+        out.append({Path(p).name: Path(p).read_bytes() for p in written})
+        rep = {k: v for k, v in res.report.items() if k not in ("timings", "atlas", "charts")}
+        out[-1]["report"] = repr(rep).encode()
+        out[-1]["uv"] = res.corner_uv.tobytes()
+    assert out[0].keys() == out[1].keys()
+    for k in out[0]:
+        assert out[0][k] == out[1][k], k
+
+
+@pytest.mark.parametrize("scene", ["disk_holes", "sphere_cap", "scene", "multi_component"])
+@pytest.mark.parametrize("alpha", [0.0, 0.1, 0.5, 0.9])
+def test_sample_scenes_have_no_flip_overlap_or_starvation(scene, alpha):
+    res = uvbake.unwrap(str(SCENES / f"{scene}.ply"), alpha=alpha, texture_size_px=512)
+    v = res.report["atlas"]["validation"]
+    assert v["n_flipped"] == 0 and v["n_overlaps"] == 0 and res.report["valid"]
+    assert res.report["min_texel_share"] >= 1 / 16
+    assert res.report["area_below_quarter"] <= 0.005
+
+
+class _Stop(Exception):
+    pass
+
+
+@pytest.mark.parametrize("workers", [1, None])
+def test_progress_moves_per_chart_and_per_iteration_and_can_stop_the_run(workers):
+    V, F = finger()
+    seen = []
+
+    def progress(stage, done, total):
+        seen.append(stage)
+        if stage == "iterate" and seen.count("iterate") == 3:
+            raise _Stop()
+
+    with pytest.raises(_Stop):
+        uvbake.unwrap((V, F), alpha=0.5, texture_size_px=256, progress=progress, workers=workers)
+    # charting reported every chart it decided before the first LM iteration, and nothing after the stop
+    assert seen.count("charts") >= 2 and seen.index("charts") < seen.index("iterate")
+    assert seen[-1] == "iterate" and "pack" not in seen

@@ -1,0 +1,433 @@
+"""Charting: decide the charts before solving, under a distortion budget.
+
+    charts, starts, log = make_charts(V, F, labels, max_stretch=4.0, max_charts=None)
+
+1. One chart per user label and edge-connected piece (never across labels; the input's own cuts
+   stay cuts). Closed pieces and pieces with handles are cut into disks (:func:`uvbake.mesh.cut.cut_to_disks`).
+2. Each chart gets one conformal map (LSCM, one sparse solve). Its area factor per triangle,
+   relative to the chart's mean, predicts the texels the triangle will get: a conformal map shrinks
+   protrusions exponentially (legs, ears, horns). A chart is kept when every factor lies within
+   [1/max_stretch, max_stretch] and nothing is flipped; the conformal map is then the solver's start.
+3. Otherwise the chart is cut along an iso-contour of its (vertex-smoothed) log area factor: the
+   sweep cut of that field with the least conductance (cut length / smaller side's area,
+   :func:`uvbake.mesh.cut._sweep`), so the seam is a short loop around a protrusion. Every
+   edge-connected piece on either side becomes a chart (all legs at once); slivers are given back to
+   their longest-bordering neighbour. Pieces go back to step 2. All of this is counted work:
+   ``max_charts`` (the user's chart budget) and a fixed cap on conformal solves end it, never time.
+
+A piece's vertices are its corner fans (corners joined across the piece's own edges), so two parts of
+a piece meeting at one vertex get their own copies of it and every piece is manifold.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from uvbake.errors import ChartError, InputError
+from uvbake.mesh.charts import Chart, check_chart, split_charts
+from uvbake.mesh.topology import face_adjacency
+
+#: Default distortion budget (area factor within [1/4, 4] of the chart's mean); see docs/decisions/atlas.md.
+DEFAULT_MAX_STRETCH = 4.0
+#: Pieces smaller than this share of their parent's area (or with fewer than MIN_PIECE_FACES
+#: triangles) are given to a neighbour instead of becoming charts.
+SLIVER_SHARE = 0.002
+MIN_PIECE_FACES = 8
+#: Rounds of overlap checks of the accepted conformal maps (each: one exact check, split, re-chart).
+OVERLAP_ROUNDS = 4
+#: Cap on conformal solves per initial chart (work count; a chart past it is kept as it is).
+MAX_SOLVES_PER_CHART = 400
+
+
+def check_budget(max_stretch, max_charts):
+    try:
+        ms = float(max_stretch)
+    except (TypeError, ValueError):
+        raise InputError(f"max_stretch={max_stretch!r} is not a number; pass a factor above 1, e.g. 4") from None
+    if not (np.isfinite(ms) and ms > 1.0):
+        raise InputError(f"max_stretch={max_stretch!r} must be a number above 1 (each triangle keeps at least "
+                         "1/max_stretch of its chart's texel density), e.g. 4")
+    if max_charts is not None and (isinstance(max_charts, bool) or int(max_charts) != max_charts or max_charts < 1):
+        raise InputError(f"max_charts={max_charts!r} must be a positive whole number (or None for no limit)")
+    return ms, (None if max_charts is None else int(max_charts))
+
+
+def disk_charts(V, F, labels, *, auto_cut=True):
+    """Charts from labels and edge-connected pieces; closed pieces and handles cut into disks.
+
+    Returns (charts, cuts): cuts lists one dict per piece that had to be cut."""
+    from uvbake.mesh.cut import cut_to_disks, seam_length
+
+    out, cuts = [], []
+    for c in split_charts(V, F, labels, check=False):
+        try:
+            check_chart(c.V, c.F, name=c.name)
+            out.append(c)
+            continue
+        except ChartError as exc:
+            closed = "closed" in str(exc) or "handle" in str(exc)
+            if not closed:
+                raise
+            if not auto_cut:
+                raise ChartError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
+        sub = cut_to_disks(c.V, c.F)
+        parts = sub_charts(c, sub)
+        for p in parts:
+            check_chart(p.V, p.F, name=p.name)
+        cuts.append(dict(chart=c.name, parts=len(parts), seam_length=seam_length(c.V, c.F, sub)))
+        out.extend(parts)
+    return out, cuts
+
+
+def sub_charts(chart, sub_labels):
+    """Split ``chart`` by per-face labels into edge-connected, manifold charts of the whole mesh.
+
+    Each part's vertices are its corner fans, so parts touching themselves at a vertex get one copy
+    of that vertex per fan. Parts are ordered by first triangle."""
+    F = chart.F
+    m, n = len(F), len(chart.V)
+    lab = np.asarray(sub_labels, dtype=np.int64)
+    fi, fj, _, hi, hj = face_adjacency(F, n, return_halfedges=True)
+    same = lab[fi] == lab[fj]
+    nc, comp = connected_components(sp.coo_matrix((np.ones(int(same.sum())), (fi[same], fj[same])),
+                                                  shape=(m, m)), directed=False)
+    from uvbake.mesh.cut import _corner_fans
+
+    fan = _corner_fans(F, n, hi[same], hj[same]).reshape(-1, 3)
+    first = np.full(nc, m)
+    np.minimum.at(first, comp, np.arange(m))
+    order = np.argsort(first, kind="stable")
+    by = np.argsort(comp, kind="stable")
+    bounds = np.searchsorted(comp[by], np.arange(nc + 1))
+    parts = []
+    for k, c in enumerate(order):                       # one iteration per part
+        fidx = by[bounds[c]:bounds[c + 1]]
+        fans, local = np.unique(fan[fidx], return_inverse=True)
+        corner_of_fan = np.full(fan.max() + 1, -1)
+        corner_of_fan[fan[fidx].ravel()] = F[fidx].ravel()
+        verts = corner_of_fan[fans]
+        parts.append(Chart(chart.V[verts], local.reshape(-1, 3).astype(np.int64), chart.vertex_map[verts],
+                           chart.face_index[fidx], chart.label, f"{chart.name}.{k}"))
+    return parts
+
+
+def slit(chart, tips):
+    """``chart`` cut open along the shortest edge paths from the vertices ``tips`` to its boundary.
+
+    The path's vertices (but the tip) get one copy per side, so the chart stays one disk with holes:
+    a finger-like protrusion, which a conformal map shrinks exponentially towards its tip, becomes a
+    strip that flattens with little distortion. The paths come from one shortest-path forest rooted on
+    the boundary, so together they form no loop and the chart stays a disk with holes. Returns
+    (chart, seam length), or None when no tip is inside the chart."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from uvbake.mesh.cut import _corner_fans
+    from uvbake.mesh.topology import boundary_edges
+
+    V, F = chart.V, chart.F
+    n = len(V)
+    bnd = np.unique(boundary_edges(F, n))
+    tips = np.setdiff1d(np.asarray(tips, dtype=np.int64), bnd)
+    if len(tips) == 0:
+        return None
+    fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
+    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    g = sp.coo_matrix((length, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    dist, pred, src = dijkstra(g, directed=False, indices=bnd, min_only=True, return_predecessors=True)
+    tips = tips[np.isfinite(dist[tips])]
+    if len(tips) == 0:
+        return None
+    on = np.zeros(n, bool)                               # vertices on some tip's path
+    cur = tips
+    while len(cur):                                      # one step per path length (~sqrt(n)), vectorised over tips
+        on[cur] = True
+        cur = pred[cur]
+        cur = np.unique(cur[(cur >= 0)])
+        cur = cur[~on[cur]]
+    a = np.flatnonzero(on & (pred >= 0))
+    b = pred[a]
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    cut = np.isin(e[:, 0] * n + e[:, 1], key)
+    keep = ~cut
+    fan = _corner_fans(F, n, hi[keep], hj[keep]).reshape(-1, 3)
+    fans, local = np.unique(fan, return_inverse=True)
+    corner_of_fan = np.full(fan.max() + 1, -1)
+    corner_of_fan[fan.ravel()] = F.ravel()
+    verts = corner_of_fan[fans]
+    return Chart(V[verts], local.reshape(-1, 3).astype(np.int64), chart.vertex_map[verts], chart.face_index,
+                 chart.label, chart.name), float(length[cut].sum())
+
+
+def lscm(V, F):
+    """Least squares conformal map (Levy et al. 2002), assembled and solved in one shot.
+
+    The same map as :func:`uvbake.flatten.starts.lscm` (area-weighted conformal energy, the two farthest
+    boundary vertices pinned at their 3D distance), but assembled straight into u/v blocks and
+    factored once with an AMD ordering: charting solves it for every candidate chart, where building
+    the solver's full energy object and nested-dissection analysis cost three quarters of the time."""
+    from uvbake.flatten.energy import triangle_frames
+    from uvbake.flatten.starts import farthest_boundary_pair
+
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    n = len(V)
+    _, Q, area = triangle_frames(V, F)
+    a, b = Q[:, :, 0], Q[:, :, 1]                        # (m,3): A = U Q, dA/du_k = (a_k, b_k)
+    w = 2.0 * area
+    r = np.repeat(F, 3, axis=1).ravel()
+    c = np.tile(F, (1, 3)).ravel()
+    # D_angle = (a.u - b.v)^2 + (b.u + a.v)^2: Huu = Hvv = 2w (a a^T + b b^T), Huv = 2w (b a^T - a b^T)
+    duu = (w[:, None, None] * (a[:, :, None] * a[:, None, :] + b[:, :, None] * b[:, None, :])).ravel()
+    duv = (w[:, None, None] * (b[:, :, None] * a[:, None, :] - a[:, :, None] * b[:, None, :])).ravel()
+    rows = np.concatenate([r, r + n, r, c + n])
+    cols = np.concatenate([c, c + n, c + n, r])
+    data = np.concatenate([duu, duu, duv, duv])
+    H = sp.csc_matrix((data, (rows, cols)), shape=(2 * n, 2 * n))
+    p, q = farthest_boundary_pair(V, F)
+    x = np.zeros(2 * n)
+    x[q] = np.linalg.norm(V[q] - V[p])
+    fixed = np.zeros(2 * n, bool)
+    fixed[[p, q, p + n, q + n]] = True
+    free = np.flatnonzero(~fixed)
+    rhs = -(H[free][:, np.flatnonzero(fixed)] @ x[fixed])
+    A = H[free][:, free].tocsc()
+    x[free] = _spd_solve_once(A, rhs)
+    return np.stack([x[:n], x[n:]], axis=1)
+
+
+def _spd_solve_once(A, b):
+    """One symmetric positive definite solve (CHOLMOD with AMD when installed, else SuperLU)."""
+    from uvbake.flatten.solvers.linalg import cholmod_available
+
+    if cholmod_available():
+        import warnings
+
+        from sksparse.cholmod import cholesky
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return cholesky(A, ordering_method="amd")(b)
+    import scipy.sparse.linalg as spla
+
+    return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                     options=dict(SymmetricMode=True)).solve(b)
+
+
+#: At most this many protrusion tips are slit open per conformal solve.
+MAX_TIPS = 32
+
+
+def _tips(chart, logf, area, bound):
+    """Vertices at local minima of the vertex-smoothed log area factor that break the budget."""
+    F, n = chart.F, len(chart.V)
+    finite = np.isfinite(logf)
+    low = logf[finite].min() - 1.0 if finite.any() else 0.0
+    x = np.where(finite, logf, low)
+    w = np.repeat(area, 3)
+    xv = np.bincount(F.ravel(), weights=w * np.repeat(x, 3), minlength=n) / np.maximum(
+        np.bincount(F.ravel(), weights=w, minlength=n), 1e-300)
+    e = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    a, b = e[:, 0], e[:, 1]
+    lower = (xv[b] < xv[a]) | ((xv[b] == xv[a]) & (b < a))
+    is_min = np.ones(n, bool)
+    is_min[a[lower]] = False
+    lower = (xv[a] < xv[b]) | ((xv[a] == xv[b]) & (a < b))
+    is_min[b[lower]] = False
+    cand = np.flatnonzero(is_min & (xv < -bound))
+    return cand[np.argsort(xv[cand], kind="stable")][:MAX_TIPS]
+
+
+def conformal_factor(V, F):
+    """LSCM map of a chart and each triangle's log area factor relative to the chart's mean.
+
+    Returns (uv (n,2), logf (m,)): logf = log(UV area / 3D area) - log(total UV / total 3D), -inf where
+    the conformal map flips or collapses the triangle."""
+    uv = lscm(V, F)
+    X = V[F]
+    a3 = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    U = uv[F]
+    e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
+    a2 = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    if a2.sum() < 0:                                   # a mirrored map: orientation is the chart's
+        uv[:, 1] *= -1
+        a2 = -a2
+    mean = a2.sum() / a3.sum()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logf = np.where(a2 > 0, np.log(a2 / a3 / mean), -np.inf)
+    return uv, logf
+
+
+def _smoothed(F, n, logf, area):
+    """The log factor averaged onto vertices (area-weighted) and back onto triangles."""
+    finite = np.isfinite(logf)
+    low = logf[finite].min() - 1.0 if finite.any() else 0.0
+    x = np.where(finite, logf, low)
+    w = np.repeat(area, 3)
+    num = np.bincount(F.ravel(), weights=w * np.repeat(x, 3), minlength=n)
+    den = np.bincount(F.ravel(), weights=w, minlength=n)
+    xv = num / np.maximum(den, 1e-300)
+    return xv[F].mean(axis=1)
+
+
+def _absorb_slivers(F, n, comp_labels, area, min_share):
+    """Give pieces below ``min_share`` of the area (or MIN_PIECE_FACES) to their longest neighbour."""
+    m = len(F)
+    fi, fj, e = face_adjacency(F, n)
+    lab = comp_labels.copy()
+    for _ in range(4):                                  # a few passes settle chains of slivers
+        same = lab[fi] == lab[fj]
+        nc, comp = connected_components(sp.coo_matrix((np.ones(int(same.sum())), (fi[same], fj[same])),
+                                                      shape=(m, m)), directed=False)
+        size = np.bincount(comp, weights=area, minlength=nc)
+        cnt = np.bincount(comp, minlength=nc)
+        small = (size < min_share * area.sum()) | (cnt < MIN_PIECE_FACES)
+        if not small.any() or nc == 1:
+            return comp
+        cross = comp[fi] != comp[fj]
+        a, b = comp[fi[cross]], comp[fj[cross]]
+        a, b = np.concatenate([a, b]), np.concatenate([b, a])
+        keep = small[a]
+        a, b = a[keep], b[keep]
+        if len(a) == 0:
+            return comp
+        # prefer a neighbour that is not itself small, then the longest shared border (face count)
+        key = a * nc + b
+        uk, cnts = np.unique(key, return_counts=True)
+        ua, ub = uk // nc, uk % nc
+        score = cnts + np.where(small[ub], 0, m)
+        best = np.lexsort((-score, ua))
+        first = np.concatenate([[True], ua[best][1:] != ua[best][:-1]])
+        target = np.arange(nc)
+        target[ua[best][first]] = ub[best][first]
+        # two slivers pointing at each other: the lower id wins, so nothing swaps forever
+        mutual = target[target] == np.arange(nc)
+        target[mutual & (np.arange(nc) < target)] = np.arange(nc)[mutual & (np.arange(nc) < target)]
+        lab = target[comp]
+    return lab
+
+
+def _level_cut(field, fi, fj, w, area, lo, hi):
+    """Labels (m,) in {0,1}: 0 below the level in [lo, hi] whose iso-contour is shortest.
+
+    Triangles are sorted by ``field``; the seam of the prefix of size k is the total length of the
+    dual edges with one end inside, for every k at once (sorting and cumulative sums)."""
+    from uvbake.mesh.cut import prefix_cuts
+
+    m = len(field)
+    order, cut = prefix_cuts(field, fi, fj, w)         # cut[k]: seam of the prefix of size k
+    fs = field[order]
+    k = np.arange(m + 1)
+    level = np.concatenate([[fs[0]], fs])              # the level just reached by prefix k
+    ok = (k >= 1) & (k <= m - 1) & (level >= lo) & (level <= hi)
+    if not ok.any():                                   # no triangle in the window: the nearest level
+        mid = 0.5 * (lo + hi)
+        kk = int(np.clip(np.searchsorted(fs, mid), 1, m - 1))
+    else:
+        kk = int(np.argmin(np.where(ok, cut, np.inf)))
+    labels = np.ones(m, np.int64)
+    labels[order[:kk]] = 0
+    return labels
+
+
+def _cut_by_factor(chart, logf, bound):
+    """Labels cutting ``chart`` along a short iso-contour of its log area factor.
+
+    The level is searched on the side that breaks the budget, between a quarter and the whole of the
+    budget away from the area-weighted median level; every piece on either side becomes a chart."""
+    from uvbake.mesh.cut import _dual_edges, split_where
+
+    V, F = chart.V, chart.F
+    m, n = len(F), len(V)
+    X = V[F]
+    area = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    field = _smoothed(F, n, logf, area)
+    o = np.argsort(field, kind="stable")
+    ref = field[o][np.searchsorted(np.cumsum(area[o]), 0.5 * area.sum())]
+    fi, fj, ea, eb, _, _ = _dual_edges(F, n)
+    w = np.linalg.norm(V[ea] - V[eb], axis=1)
+    if ref - field.min() >= field.max() - ref:
+        side = _level_cut(field, fi, fj, w, area, ref - bound, ref - 0.25 * bound)
+    else:
+        side = _level_cut(field, fi, fj, w, area, ref + 0.25 * bound, ref + bound)
+    lab = _absorb_slivers(F, n, side, area, SLIVER_SHARE)
+    if len(np.unique(lab)) < 2:
+        bad = np.flatnonzero(~np.isfinite(logf) | (logf < ref - bound))
+        lab = split_where(V, F, bad) if m >= 2 else np.zeros(m, np.int64)
+    return lab
+
+
+def make_charts(V, F, labels=None, *, max_stretch=DEFAULT_MAX_STRETCH, max_charts=None, auto_cut=True,
+                progress=None):
+    """Charts of (V, F) that flatten within the distortion budget, with their conformal start maps.
+
+    Returns
+    -------
+    charts : list of Chart        ordered as they were decided (deterministic)
+    starts : list of (k,2) arrays  each chart's conformal map (every triangle det > 0 when the chart is
+                                   within the budget)
+    log : dict                     JSON-ready: initial disk cuts, budget cuts, charts kept over budget
+    """
+    max_stretch, max_charts = check_budget(max_stretch, max_charts)
+    note = progress or (lambda stage, done, total: None)
+    disks, cuts = disk_charts(V, F, labels, auto_cut=auto_cut)
+    bound = float(np.log(max_stretch))
+    queue = [(c, None) for c in disks]
+    solves = 0
+    budget_solves = MAX_SOLVES_PER_CHART * len(disks)
+    done, starts, budget_cuts, over = [], [], [], []
+    checked = 0
+    for _ in range(OVERLAP_ROUNDS + 1):                 # rounds: conformal charts, then their overlaps
+        while queue:                                        # one iteration per conformal solve
+            chart, previous = queue.pop(0)
+            uv, logf = conformal_factor(chart.V, chart.F)
+            solves += 1
+            ok = bool(np.all(np.isfinite(logf)) and logf.min() >= -bound)
+            full = max_charts is not None and len(done) + len(queue) + 1 >= max_charts
+            if ok or len(chart.F) < 2 * MIN_PIECE_FACES or full or solves >= budget_solves:
+                if not ok:
+                    over.append(dict(chart=chart.name, triangles=int(len(chart.F)),
+                                     least_factor=float(np.exp(logf.min())),
+                                     reason="max_charts" if full else "too small to cut" if
+                                     len(chart.F) < 2 * MIN_PIECE_FACES else "work cap"))
+                done.append(chart)
+                starts.append(uv)
+            else:
+                least = float(logf.min())
+                slitted = None
+                # a slit first while it pays (the least factor at least doubles): it adds no chart
+                if previous is None or least > previous + np.log(2.0):
+                    X = chart.V[chart.F]
+                    area = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+                    slitted = slit(chart, _tips(chart, logf, area, bound))
+                if slitted is not None:
+                    chart2, length = slitted
+                    budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=1, slit=True,
+                                            seam_length=length, least_factor=float(np.exp(least))))
+                    queue.insert(0, (chart2, least))
+                else:
+                    parts = sub_charts(chart, _cut_by_factor(chart, logf, bound))
+                    budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=len(parts),
+                                            least_factor=float(np.exp(least))))
+                    queue.extend((p, None) for p in parts)
+            note("charts", len(done), len(done) + len(queue))
+        # conformal maps that overlap themselves (mostly slit sides that cross instead of opening)
+        # predict the solve's overlaps: split those charts between the two sheets now, before solving
+        from uvbake.atlas.guarantee import overlapping_pairs, separating_split
+
+        fresh = list(range(checked, len(done)))
+        pairs = overlapping_pairs([done[i] for i in fresh], [starts[i] for i in fresh])
+        bad = {i: p for i, p in zip(fresh, pairs) if len(p) and len(done[i].F) >= 2}
+        if not bad or (max_charts is not None and len(done) + len(bad) > max_charts):
+            break
+        keep = [i for i in range(len(done)) if i not in bad]
+        for i in sorted(bad):
+            parts, _, rec = separating_split(done[i], starts[i], bad[i])
+            budget_cuts.append(rec)
+            queue.extend((p, None) for p in parts)
+        done, starts = [done[i] for i in keep], [starts[i] for i in keep]
+        checked = len(done)
+    for i, c in enumerate(done):
+        c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
+    return done, starts, dict(cuts=cuts, budget_cuts=budget_cuts, over_budget=over, conformal_solves=solves)
