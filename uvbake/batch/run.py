@@ -32,7 +32,7 @@ DEFAULT_TIMEOUT_S = 600.0
 #: columns of the summary, in order (the per-stage times are unwrap's, then the batch's own)
 COLUMNS = ["asset", "status", "error", "charts", "charts_input", "valid", "n_flipped", "n_overlaps",
            "angle_distortion", "angle_distortion_max", "area_distortion", "packing", "triangles", "vertices",
-           "all_converged", "repairs", "t_load_repair_s", "t_charts_s", "t_solve_s", "t_split_s", "t_pack_s",
+           "all_converged", "repairs", "t_load_repair_s", "t_charts_s", "t_solve_s", "t_pack_s",
            "t_validate_s", "t_bake_s", "t_total_s", "t_save_s", "t_preview_s", "t_atlas_s", "t_startup_s",
            "t_asset_s", "worker", "input", "key", "mesh", "preview", "atlas", "preview_error"]
 #: order of statuses in the report and summary: failures on top
