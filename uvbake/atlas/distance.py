@@ -9,9 +9,10 @@ import numpy as np
 
 def boundary_halfedges(F):
     """Oriented boundary edges ``(b,2)`` of a triangle set: the half-edges without a twin."""
-    E = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.sort(E, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    E = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2).astype(np.int64)
+    n = int(E.max()) + 1 if len(E) else 1
+    key = np.minimum(E[:, 0], E[:, 1]) * n + np.maximum(E[:, 0], E[:, 1])   # one integer per undirected edge
+    _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
     return E[cnt[inv.ravel()] == 1]
 
 

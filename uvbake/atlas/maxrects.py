@@ -18,8 +18,10 @@ def _hull_points(P):
 
     try:
         return P[ConvexHull(P).vertices]
-    except QhullError:          # collinear or coincident points
-        return P
+    except QhullError:          # collinear or coincident points: their two extremes along the spread
+        c = P - P.mean(axis=0)
+        d = np.linalg.svd(c, full_matrices=False)[2][0]
+        return P[[int(np.argmin(c @ d)), int(np.argmax(c @ d))]]
 
 
 def min_area_rect(P):
@@ -36,15 +38,13 @@ def min_area_rect(P):
     if len(H) < 3:   # degenerate: align the direction of largest spread
         _, _, vt = np.linalg.svd(H, full_matrices=False)
         angles = np.array([np.arctan2(vt[0, 1], vt[0, 0])])
+        c, s = np.cos(angles), np.sin(angles)
+        x = H @ np.stack([c, s])
+        y = H @ np.stack([-s, c])
+        w = x.max(axis=0) - x.min(axis=0)
+        h = y.max(axis=0) - y.min(axis=0)
     else:
-        E = np.roll(H, -1, axis=0) - H
-        angles = np.arctan2(E[:, 1], E[:, 0])
-    # every edge direction as the x axis: project the hull on (cos, sin) and (-sin, cos)
-    c, s = np.cos(angles), np.sin(angles)
-    x = H @ np.stack([c, s])                # (h, e)
-    y = H @ np.stack([-s, c])
-    w = x.max(axis=0) - x.min(axis=0)
-    h = y.max(axis=0) - y.min(axis=0)
+        w, h, angles = _caliper_extents(H)
     k = int(np.argmin(w * h))
     theta, w, h = -angles[k], w[k], h[k]
     if h > w:                                # lay it long side along x
@@ -52,6 +52,31 @@ def min_area_rect(P):
         w, h = h, w
     theta = float(np.arctan2(np.sin(theta), np.cos(theta)))
     return theta, float(w), float(h)
+
+
+def _caliper_extents(H):
+    """Width and height of the bounding rectangle along every edge of a convex polygon ``H`` (ccw).
+
+    Rotating calipers without the O(h^2) projection: the edge directions of a convex polygon increase
+    monotonically, so the vertex extreme in a direction is found by binary search on them.
+    """
+    E = np.roll(H, -1, axis=0) - H
+    a = np.unwrap(np.arctan2(E[:, 1], E[:, 0]))
+    if a[-1] < a[0]:                         # clockwise input: reverse it
+        return _caliper_extents(H[::-1].copy())
+    n = len(H)
+
+    def extreme(phi):                        # vertex maximising p . (cos phi, sin phi)
+        t = np.mod(phi + np.pi / 2 - a[0], 2 * np.pi) + a[0]
+        return np.searchsorted(a, t, side="left") % n
+
+    u = np.column_stack([np.cos(a), np.sin(a)])
+    v = np.column_stack([-u[:, 1], u[:, 0]])
+    xmax = np.einsum("ij,ij->i", H[extreme(a)], u)
+    xmin = np.einsum("ij,ij->i", H[extreme(a + np.pi)], u)
+    ymax = np.einsum("ij,ij->i", H[extreme(a + np.pi / 2)], v)
+    ymin = np.einsum("ij,ij->i", H, v)        # the edge itself is the low side (ccw: inward normal v)
+    return xmax - xmin, ymax - ymin, a
 
 
 _RULES = ("bssf", "blsf", "baf", "bl", "cp")

@@ -297,24 +297,32 @@ def _pack_boxes(wh, pad, packers):
     return best_s, best_p
 
 
-def _own_packers(wh, allow_turn=True):
+def _own_packers(wh, allow_turn=True, rules=_RULES):
     """One packer per (placement rule, order) pair."""
-    return [lambda sizes, o=o, r=r: _maxrects(sizes, o, r, allow_turn) for r in _RULES for o in _orders(wh)]
+    return [lambda sizes, o=o, r=r: _maxrects(sizes, o, r, allow_turn) for r in rules for o in _orders(wh)]
+
+
+# the rules the box packer runs when it only competes with shapes ("auto"): on the 14 multi-chart sets
+# of bench/pack.py with 2-64 charts they reach the density of all five rules within 1 % at 30-75 % of
+# the time (docs/decisions/pack.md)
+_AUTO_RULES = ("baf", "cp")
 
 
 def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
-                packers: list[Callable[[np.ndarray], Any]] | None = None) -> Placement:
+                packers: list[Callable[[np.ndarray], Any]] | None = None, rects: Any = None,
+                rules: tuple[str, ...] = _RULES) -> Placement:
     """Rotate each chart to its minimum-area rectangle, pad by the gutter and pack the boxes.
 
     ``packers`` map padded box sizes (k,2) to (positions (k,2), turned (k,) bool) or None when they do
-    not fit; default: uvbake's MaxRects with every placement rule and order. A *placer* as
-    :func:`pack_charts` takes one: (s, rotation, offset, placed UVs, measured gap in texels or None).
+    not fit; default: uvbake's MaxRects with the placement ``rules`` and every order. ``rects``: the
+    charts' min_area_rect when already known. A *placer* as :func:`pack_charts` takes one: (s,
+    rotation, offset, placed UVs, measured gap in texels or None).
     """
     pad = g / N + _EPS_PAD
-    rects = [min_area_rect(uv) for uv in uvs]
+    rects = [min_area_rect(uv) for uv in uvs] if rects is None else rects
     wh = np.array([[w, h] for _, w, h in rects])
     if packers is None:
-        packers = _own_packers(wh)
+        packers = _own_packers(wh, rules=rules)
     s, payload = _pack_boxes(wh, pad, packers)
     if s is None:
         raise InputError(f"gutter_px={g} is too large for {len(uvs)} charts in a {N}-texel atlas: the gutters "
@@ -418,15 +426,22 @@ def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None,
 
 
 def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
-    """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the denser wins)."""
+    """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the denser wins).
+
+    One chart: its box in the square is what shapes reach too (they try the same angles), so the shape
+    search is skipped; the shape search gives up once it cannot beat the boxes.
+    """
     boxes = None
+    rects = np.array([min_area_rect(uv) for uv in uvs]) if rotate else None
     if try_boxes and W == H and density is None and len(uvs) <= 64:
-        boxes = place_boxes(uvs, faces, W, g) if rotate else _place_unrotated(uvs, faces, W, g)
-    s, rotation, offset, out, gap, W, H, density = _place_shapes(
-        uvs, faces, W, H, g, density, rotate, K, aspect, guess=None if boxes is None else boxes[0] * W)
-    if boxes is not None and boxes[0] > s * (1 + 1e-12):
+        boxes = place_boxes(uvs, faces, W, g, rects=rects, rules=_AUTO_RULES) if rotate else \
+            _place_unrotated(uvs, faces, W, g)
+    shapes = None if boxes is not None and len(uvs) == 1 else _place_shapes(
+        uvs, faces, W, H, g, density, rotate, K, aspect, rects, guess=None if boxes is None else boxes[0] * W)
+    if boxes is not None and (shapes is None or boxes[0] > shapes[0] * (1 + 1e-12)):
         s, rotation, offset, out, gap = boxes
         return s, rotation, offset, out, gap, W, H, boxes[0] * W, "maxrects"
+    s, rotation, offset, out, gap, W, H, density = shapes
     return s, rotation, offset, out, gap, W, H, density, "shape"
 
 
@@ -442,24 +457,40 @@ def _place_free_scale(uvs, faces, N, g, rotate, used):
     return (*_place_unrotated(uvs, faces, N, g), used)
 
 
-def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, guess=None):
-    """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing."""
-    from uvbake.atlas.shapepack import ShapePacker, fit_scale, grow_rectangle, grow_square
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None):
+    """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing.
+
+    With ``guess`` (a box packing's density) the free-scale search gives up, returning None, as soon as
+    it is clear shapes will not beat it.
+    """
+    from uvbake.atlas.fit import fit_scale, fit_width, grow_rectangle, grow_square, scale_to_border
+    from uvbake.atlas.shapepack import ShapePacker
 
     # each chart at its minimum-area-rectangle angle (+ quarter turns); the six biggest also at 45 degrees
     # from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4 on sphere_cap),
     # unless they are longer than 3:1 (a diagonal long chart rasterises a mostly empty square)
-    rects = np.array([min_area_rect(uv) for uv in uvs]) if rotate else np.zeros((len(uvs), 3))
+    rects = rects if rotate else np.zeros((len(uvs), 3))
     big = set(np.lexsort((np.arange(len(uvs)), -rects[:, 1] * rects[:, 2]))[:6].tolist()) if rotate else set()
     big = {i for i in big if rects[i, 1] <= 3 * rects[i, 2]}
     angles = [np.array([t, t + np.pi / 4] if i in big else [t]) for i, t in enumerate(rects[:, 0])]
+    few = rotate and density is None and len(uvs) <= 4
+    if few:         # up to 4 charts: 22.5-degree steps (bumpy +1.0 point; paid by one width round, not two)
+        angles = [np.concatenate([a, a[0] + np.array([np.pi / 8, 3 * np.pi / 8])]) for a in angles]
     packer = ShapePacker(uvs, faces, angles, quarter_turns=bool(rotate))
     if density is None:
         # full-resolution trials add <= 1.2 points below 12 charts (bench/pack.py) at 2-3x the time
-        p = fit_scale(packer, W, H, g, fine_packs=2 if len(uvs) >= 12 else 0, guess=guess)
+        if len(uvs) >= 12:
+            p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
+        else:       # few charts: one raster, strips of several widths, each layout scaled to the atlas
+            area = float(packer.area.sum())
+            p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
+                          floor=guess, rounds=1 if few else 2)
+        if p is None and guess is not None:
+            return None
         if p is None:
             raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
                              f"take the room; reduce gutter_px or increase texture_size_px")
+        p = scale_to_border(packer, p, W, H, g)
     elif W is None and aspect == "free":
         W, H, p = grow_rectangle(packer, g, density, quantum=max(4, 2 ** mip_levels))
         if W is None:

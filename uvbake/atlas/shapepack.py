@@ -18,8 +18,8 @@ runs ``(dy, a, L)`` fits at ``(x, y)`` iff ``run[y+dy, x+a] >= L`` for all its r
 are pruned by the row maxima and candidate positions are filtered one run at a time, all in numpy
 (the idea of xatlas's bitmap packer, written independently as run-length tests).
 
-The common scale is the largest one at which everything fits the atlas (a strip of the atlas width is
-packed, and the scale is searched on the height it needs); with a fixed texel density the strip is
+The common scale is searched in uvbake.atlas.fit (strips of the atlas width at several scales, or one
+raster in strips of several widths scaled to the atlas); with a fixed texel density the strip is
 packed once.
 """
 
@@ -126,7 +126,7 @@ def footprint(q, F, bedges, flipped):
     return fp
 
 
-def _runs(fp):
+def _raw_runs(fp):
     """Horizontal runs of a footprint: rows ``dy``, starts ``a`` and lengths ``L``, row-major order."""
     h, w = fp.shape
     pad = np.zeros((h, w + 2), np.int8)
@@ -135,6 +135,18 @@ def _runs(fp):
     sr, sc = np.nonzero(d == 1)
     _, ec = np.nonzero(d == -1)
     return sr, sc, ec - sc
+
+
+def _runs(fp, raw=None):
+    """Runs of a footprint (``raw``: _raw_runs(fp) when known) in the order the search tests them: the
+    longest run first, then runs spread over the footprint's rows (neighbouring rows agree, spread ones
+    reject more candidates sooner; a fixed order, no randomness)."""
+    dy, a, L = _raw_runs(fp) if raw is None else raw
+    spread = np.mod(dy * 0.6180339887498949, 1.0)
+    spread[np.argmax(L)] = -1.0
+    order = np.lexsort((a, spread))
+    dy, a, L = dy[order], a[order], L[order]
+    return dy, a, L
 
 
 def gutter_element(gutter_px):
@@ -188,13 +200,13 @@ def _free_runs(blocked):
 class _Atlas:
     """Blocked texels of a strip ``width`` wide, grown upwards on demand, with free-run tables."""
 
-    def __init__(self, width, height, margin):
+    def __init__(self, width, height, margin, rows=64):
         self.w, self.limit, self.m = width, height, margin
         self.blocked = np.zeros((0, width), bool)
         self.run = np.zeros((0, width), np.int32)
         self.rowmax = np.zeros(0, np.int32)
         self.top = margin                # first row above every placed chart's blocked texels
-        self._grow(64)
+        self._grow(max(int(rows), 64))
 
     def _grow(self, rows):
         """Append ``rows`` free rows (their borders blocked); a free row's run table is one template."""
@@ -231,12 +243,6 @@ class _Atlas:
         np.maximum.at(Lrow, dy, L.astype(np.int32))
         win = np.lib.stride_tricks.sliding_window_view(self.rowmax[:ny + h - 1], h)
         ys = np.flatnonzero((win >= Lrow[None, :]).all(axis=1))
-        # the longest run first, then runs spread over the footprint's rows (neighbouring rows agree,
-        # spread ones reject more candidates sooner); a fixed order: no randomness
-        spread = np.mod(dy * 0.6180339887498949, 1.0)
-        spread[np.argmax(L)] = -1.0
-        order = np.lexsort((a, spread))
-        dy, a, L = dy[order], a[order], L[order]
         k0 = 0
         while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
             yc = ys[k0:k0 + _CHUNK]
@@ -247,8 +253,8 @@ class _Atlas:
             while k < len(dy):
                 ok &= self.run[yc + dy[k], a[k]:a[k] + nx] >= L[k]
                 k += 1
-                if k % 4 == 0 and np.count_nonzero(ok) < nx:
-                    break
+                if k % 4 == 0 and (k >= 16 or np.count_nonzero(ok) < nx):
+                    break                     # survivors go to the sparse phase, which stops at the first fit
             yi, xi = np.nonzero(ok)           # row-major: bottom-left first
             for b0 in range(0, len(yi), _BATCH):      # sparse phase: the other runs on the survivors
                 cy, cx = yc[yi[b0:b0 + _BATCH]], xi[b0:b0 + _BATCH]
@@ -317,6 +323,30 @@ class ShapePacker:
             self.flipped.append(np.flatnonzero(sa * major <= 0))
             self.area[i] = np.abs(sa).sum()
         self.order = np.lexsort((np.arange(len(uvs)), -self.area))      # biggest first, ties by index
+        self._density, self._cands, self._dilated = None, {}, {}          # footprints at the last density
+
+    def _cached(self, i, density):
+        """Chart i's candidates at ``density`` with their runs; kept while the density stays the same
+        (the width search packs one density several times)."""
+        if density != self._density:
+            self._density, self._cands, self._dilated = density, {}, {}
+        if i not in self._cands:
+            out, raw = [], []
+            for k, (fp, theta, t) in enumerate(self._candidates(i, density)):
+                if self.quarter_turns and k % 4 >= 2:     # a half turn of candidate k - 2: its runs mirrored
+                    dy, a, L = raw[k - 2]
+                    raw.append((fp.shape[0] - 1 - dy, fp.shape[1] - a - L, L))
+                else:
+                    raw.append(_raw_runs(fp))
+                out.append((fp, theta, t, _runs(fp, raw[-1])))
+            self._cands[i] = out
+        return self._cands[i]
+
+    def _dilate_cached(self, i, r, fp, g):
+        key = (i, r, g)
+        if key not in self._dilated:
+            self._dilated[key] = _dilate(fp, g)
+        return self._dilated[key]
 
     def _candidates(self, i, density):
         """(footprint, angle, offset) of chart i at every rotation tried: each base angle is rasterised
@@ -344,14 +374,15 @@ class ShapePacker:
         """
         g = int(gutter_px)
         m = (g + 1) // 2
-        atlas = _Atlas(width, height, m)
+        rows = height if height else (give_up_above + 2 * g + 2 if give_up_above else width)
+        atlas = _Atlas(width, height, m, rows)
         n = len(self.uvs)
         rotation, offset = np.zeros(n), np.zeros((n, 2))
         placed = 0.0
         for i in self.order:                      # one iteration per chart; the search inside is numpy
             best = None
-            for r, (fp, theta, t) in enumerate(self._candidates(i, density)):
-                pos = atlas.find(_runs(fp), *fp.shape, top_bound=None if best is None else best[0][0])
+            for r, (fp, theta, t, runs) in enumerate(self._cached(i, density)):
+                pos = atlas.find(runs, *fp.shape, top_bound=None if best is None else best[0][0])
                 if pos is None:
                     continue
                 key = (pos[1] + fp.shape[0], pos[1], pos[0], r)
@@ -360,7 +391,7 @@ class ShapePacker:
             if best is None:
                 return None
             key, fp, theta, off = best
-            atlas.place(_dilate(fp, g), key[2], key[1], g, key[1] + fp.shape[0] + g)
+            atlas.place(self._dilate_cached(i, key[3], fp, g), key[2], key[1], g, key[1] + fp.shape[0] + g)
             rotation[i] = float(np.arctan2(np.sin(theta), np.cos(theta)))
             offset[i] = off
             placed += self.area[i]
@@ -370,66 +401,6 @@ class ShapePacker:
                                     height_used=int(np.ceil(used)), complete=False)
         return ShapePacking(density=float(density), rotation=rotation, offset=offset,
                             height_used=atlas.top - g + m)
-
-
-def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
-    """Bracketed search for the largest feasible density: the height a trial needs steers the next one
-    (at a fixed width the height grows like density^2), kept inside the bracket [lo, hi]."""
-    for _ in range(max_packs):
-        if lo is not None and hi is not None and hi <= lo * (1 + rel_tol):
-            break
-        p = packer.pack(s, width, None, g, give_up_above=height)
-        if p is not None and p.complete and p.height_used <= height:
-            lo, lo_pack = s, p
-        else:
-            hi = s
-        guess = s * np.sqrt(height / p.height_used) if p is not None else 0.8 * s
-        if lo is None:
-            s = min(guess, 0.9 * s)
-        elif hi is None:
-            s = max(guess, 1.05 * s)
-        else:
-            s = float(np.clip(guess, lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo)))
-    return lo, lo_pack
-
-
-def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, fine_packs=2, guess=None):
-    """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
-
-    Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
-    ``height`` rows. The search runs first on a raster ``c`` times coarser (``c`` a power of two making
-    the long side about ``coarse_px``, the short side at least 32; gutter ``ceil(gutter_px / c)`` coarse texels): a coarse packing
-    scaled by ``c`` is a valid full-resolution packing (coarse footprints cover the fine ones, gutters
-    and margins only grow), so it is the fallback; then at most ``fine_packs`` full-resolution trials
-    look for a larger density. ``guess`` (a density, e.g. a box packer's) starts the search.
-    Returns a ShapePacking at full resolution, or None if nothing fits.
-    """
-    g = int(gutter_px)
-    area = float(packer.area.sum())
-    c = 1
-    while (max(width, height) // (2 * c) >= coarse_px and min(width, height) // (2 * c) >= 32
-           and width % (2 * c) == 0 and height % (2 * c) == 0):
-        c *= 2
-    top = np.sqrt(width * height / area) if area > 0 else 1.0
-    cw, ch, cg = width // c, height // c, -(-g // c)
-    coarse_tol = rel_tol if c == 1 or fine_packs == 0 else 2.5 * rel_tol      # the fine trials refine it
-    start = 0.75 * top if guess is None else min(guess, top)
-    lo, p = _search(packer, cw, ch, cg, None, None, top / c, start / c, 16, coarse_tol)
-    if lo is None:                                 # halve until something fits (tiny atlas, big gutter)
-        s = 0.75 * top / c
-        for _ in range(30):
-            s *= 0.5
-            p = packer.pack(s, cw, None, cg)
-            if p is not None and p.height_used <= ch:
-                lo = s
-                break
-        else:
-            return None
-    best = ShapePacking(density=lo * c, rotation=p.rotation, offset=p.offset * c, height_used=p.height_used * c)
-    if c == 1 or fine_packs == 0:
-        return best
-    s_lo, p = _search(packer, width, height, g, lo * c, best, top, lo * c * 1.03, fine_packs, rel_tol)
-    return p
 
 
 def mip_gutter_px(mip_levels):
@@ -453,47 +424,3 @@ def mip_gutter_px(mip_levels):
         return 0
     r = np.sqrt(2.0) * (1.5 * 2 ** (L - 1) - 0.5)
     return int(np.floor(2 * r + BAKE_MARGIN_PX + np.sqrt(0.5))) + 1
-
-
-def grow_square(packer, gutter_px, density, *, quantum=4, max_side=16384):
-    """Smallest square side (a multiple of ``quantum``) whose strip holds every chart at ``density``.
-
-    Returns (side, ShapePacking) or (None, side needed at least) when it exceeds ``max_side``.
-    """
-    g = int(gutter_px)
-    area_px = float(packer.area.sum()) * density * density
-    side = int(quantum * np.ceil(np.sqrt(area_px / 0.8) / quantum))
-    for _ in range(64):
-        if side > max_side:
-            return None, side
-        p = packer.pack(density, side, None, g)
-        if p is not None and p.height_used <= side:
-            return side, p
-        need = 1.25 * side if p is None else max(side + quantum, np.sqrt(side * p.height_used))   # None: too narrow
-        side = int(quantum * np.ceil(need / quantum))
-    return None, side
-
-
-def grow_rectangle(packer, gutter_px, density, *, quantum=4, max_side=16384):
-    """Smallest-area ``width x height`` atlas (sides multiples of ``quantum``) holding every chart at
-    ``density``: strips of widths ``sqrt(area) * 2^k`` (k = 0..6, at most ``max_side``) are packed (a
-    strip stops once it needs more texels than the best so far) and the one needing the fewest texels
-    wins (ties: the squarer). Returns (width, height, ShapePacking) or (None, None, None) when no strip
-    fits within ``max_side``.
-    """
-    g = int(gutter_px)
-    root = np.sqrt(float(packer.area.sum()) * density * density)
-    widths = sorted({int(quantum * np.ceil(min(max(root * 2.0 ** k, 64), max_side) / quantum)) for k in range(7)})
-    best = None
-    for w in widths:                          # at most seven strips
-        limit = max_side if best is None else min(max_side, best[0][0] // w)
-        p = packer.pack(density, w, None, g, give_up_above=limit)
-        if p is None or not p.complete:
-            continue
-        h = int(quantum * np.ceil(p.height_used / quantum))
-        if h > max_side:
-            continue
-        key = (w * h, abs(np.log(w / h)))
-        if best is None or key < best[0]:
-            best = (key, w, h, p)
-    return (None, None, None) if best is None else best[1:]

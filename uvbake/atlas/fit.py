@@ -1,0 +1,237 @@
+"""The common scale of a shape packing: searched for a fixed atlas, or an atlas grown for a fixed scale.
+
+Every search packs uvbake.atlas.shapepack's rasterised footprints (ShapePacker) and keeps the packing
+with the largest texel density that fits; the measurements behind the choices are in
+docs/decisions/pack.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uvbake.atlas.shapepack import ShapePacking
+
+
+def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
+    """Bracketed search for the largest feasible density: the height a trial needs steers the next one
+    (at a fixed width the height grows like density^2), kept inside the bracket [lo, hi]."""
+    for _ in range(max_packs):
+        if lo is not None and hi is not None and hi <= lo * (1 + rel_tol):
+            break
+        p = packer.pack(s, width, None, g, give_up_above=height)
+        if p is not None and p.complete and p.height_used <= height:
+            lo, lo_pack = s, p
+        else:
+            hi = s
+        guess = s * np.sqrt(height / p.height_used) if p is not None else 0.8 * s
+        if lo is None:
+            s = min(guess, 0.9 * s)
+        elif hi is None:
+            s = max(guess, 1.05 * s)
+        else:
+            s = float(np.clip(guess, lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo)))
+    return lo, lo_pack
+
+
+def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, fine_packs=2, guess=None,
+              beat_guess=False):
+    """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
+
+    Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
+    ``height`` rows. The search runs first on a raster ``c`` times coarser (``c`` a power of two making
+    the long side about ``coarse_px``, the short side at least 32; gutter ``ceil(gutter_px / c)`` coarse texels): a coarse packing
+    scaled by ``c`` is a valid full-resolution packing (coarse footprints cover the fine ones, gutters
+    and margins only grow), so it is the fallback; then at most ``fine_packs`` full-resolution trials
+    look for a larger density. ``guess`` (a density, e.g. a box packer's) starts the search; with
+    ``beat_guess`` and no full-resolution trials, a first trial failing at ``guess`` ends it (None: the
+    search would only find lower densities).
+    Returns a ShapePacking at full resolution, or None if nothing fits.
+    """
+    g = int(gutter_px)
+    area = float(packer.area.sum())
+    c = 1
+    while (max(width, height) // (2 * c) >= coarse_px and min(width, height) // (2 * c) >= 32
+           and width % (2 * c) == 0 and height % (2 * c) == 0):
+        c *= 2
+    top = np.sqrt(width * height / area) if area > 0 else 1.0
+    cw, ch, cg = width // c, height // c, -(-g // c)
+    coarse_tol = rel_tol if c == 1 or fine_packs == 0 else 2.5 * rel_tol      # the fine trials refine it
+    start = 0.75 * top if guess is None else min(guess, top)
+    lo, p, hi = None, None, top / c
+    if beat_guess and guess is not None:
+        s0 = start / c
+        p0 = packer.pack(s0, cw, None, cg, give_up_above=ch)
+        if p0 is not None and p0.complete and p0.height_used <= ch:
+            lo, p, start = s0, p0, s0 * min(max(np.sqrt(ch / p0.height_used), 1 + 2 * coarse_tol), top / s0) * c
+        elif fine_packs == 0 or c == 1:
+            return None
+        else:
+            hi = s0
+    lo, p = _search(packer, cw, ch, cg, lo, p, hi, start / c, 16, coarse_tol)
+    if lo is None:                                 # halve until something fits (tiny atlas, big gutter)
+        s = 0.75 * top / c
+        for _ in range(30):
+            s *= 0.5
+            p = packer.pack(s, cw, None, cg)
+            if p is not None and p.height_used <= ch:
+                lo = s
+                break
+        else:
+            return None
+    best = ShapePacking(density=lo * c, rotation=p.rotation, offset=p.offset * c, height_used=p.height_used * c)
+    if c == 1 or fine_packs == 0:
+        return best
+    s_lo, p = _search(packer, width, height, g, lo * c, best, top, lo * c * 1.03, fine_packs, rel_tol)
+    return p
+
+
+def scale_to_border(packer, p, width, height, gutter_px, c=1, coarse_gutter=None):
+    """The packing ``p`` (made on a raster ``c`` times coarser with gutter ``coarse_gutter``) scaled about
+    the atlas origin until a chart meets the border margin of a ``width x height`` atlas; None when the
+    scaled layout would break the gutter.
+
+    Scaling a layout by ``k`` (density and offsets alike) multiplies every distance by ``k``: gaps of at
+    least ``c * coarse_gutter`` texels become ``k c coarse_gutter >= gutter_px`` when ``k`` is large
+    enough; the layout's box is then moved to the margin ``ceil(gutter_px / 2)`` (a translation keeps
+    every distance). So a layout packed small, in any strip, is a valid packing once scaled; at ``c = 1``
+    this takes back the slack the conservative footprints and the coarse margins leave.
+    """
+    g = int(gutter_px)
+    cg = g if coarse_gutter is None else int(coarse_gutter)
+    m = (g + 1) // 2
+    lo, hi = _layout_box(packer, p)
+    # the layout's box [lo, hi] (coarse texels) scaled by c k and moved to start at the margin m
+    k = float(np.min((np.array([width, height], float) - 2 * m) / np.maximum(c * (hi - lo), 1e-300)))
+    k *= 1.0 - 1e-9                          # rounding must never push a chart past the margin
+    if k * c * cg < g * (1 + 1e-9) or k <= 0:
+        return p if c == 1 else None         # at c = 1, p itself is valid
+    return ShapePacking(density=p.density * c * k, rotation=p.rotation, offset=(p.offset - lo) * c * k + m,
+                        height_used=int(np.ceil((hi[1] - lo[1]) * c * k + 2 * m)), complete=p.complete)
+
+
+def fit_width(packer, width, height, gutter_px, guess, *, coarse_px=256, packs=5, floor=None, rounds=2):
+    """Largest common density found by packing the charts once rasterised, in strips of several widths.
+
+    The charts are rasterised once, ``c`` times coarser than the atlas (as in fit_scale), at a density
+    a little under ``guess``; each trial packs that raster in a strip of another width and scales the
+    layout up to the atlas (scale_to_border: every trial that fits is a valid packing, no trial is
+    wasted on a density that does not fit, and the footprints are reused). The next width steers the
+    layout's aspect towards the atlas's. When no width fits, the density is lowered by 0.8 and the
+    widths tried again; ``rounds - 1`` more rounds start at 0.95 of the best density found. With
+    ``floor`` (a density to beat) a round stops after two trials below it. Returns the densest
+    full-resolution ShapePacking, or None.
+    """
+    g = int(gutter_px)
+    c = 1
+    while (max(width, height) // (2 * c) >= coarse_px and min(width, height) // (2 * c) >= 32
+           and width % (2 * c) == 0 and height % (2 * c) == 0):
+        c *= 2
+    cw, ch, cg = width // c, height // c, -(-g // c)
+    best, d0 = None, 0.97 * guess / c
+    for _ in range(40):                       # a density too high for every width: lower it
+        best, w = _width_trials(packer, width, height, g, c, cg, d0, width // c, packs, floor)
+        if best is not None or (floor is not None and 0.8 * d0 * c < floor):
+            break
+        d0 *= 0.8
+    for _ in range(rounds - 1):               # again under the best density (another raster),
+        if best is None:                      # from the best width scaled to it, two trials
+            break
+        d1 = 0.95 * best.density / c
+        q, _ = _width_trials(packer, width, height, g, c, cg, d1, int(round(w * d1 / d0)), 2, floor)
+        if q is None or q.density <= best.density:
+            break
+        best, d0 = q, d1
+    return best
+
+
+def _reach(packer, p, width, height, g, c):
+    """The density the coarse layout ``p`` would reach scaled to the atlas, ignoring the gutter."""
+    lo, hi = _layout_box(packer, p)
+    m = (int(g) + 1) // 2
+    return float(p.density * c * np.min((np.array([width, height], float) - 2 * m) / np.maximum(c * (hi - lo), 1e-300)))
+
+
+def _layout_box(packer, p):
+    """Lower and upper corner of the box around every chart of the packing ``p`` (its texels)."""
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for i, (uv, th) in enumerate(zip(packer.uvs, p.rotation)):      # one iteration per chart
+        co, si = np.cos(th), np.sin(th)
+        q = p.density * (uv @ np.array([[co, si], [-si, co]])) + p.offset[i]
+        lo, hi = np.minimum(lo, q.min(axis=0)), np.maximum(hi, q.max(axis=0))
+    return lo, hi
+
+
+def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor):
+    """fit_width's trials at one coarse density ``d0`` from strip width ``w``: the densest scaled
+    layout (or None) and its strip width. Widths move by 0.8 % at least, else the trials stop."""
+    cw, ch = width // c, height // c
+    best, misses, best_w = None, 0, w
+    tried = set()
+    for _ in range(packs):
+        w = int(min(max(w, 8), cw))
+        if w in tried:
+            break
+        tried.add(w)
+        p = packer.pack(d0, w, None, cg, give_up_above=4 * ch)
+        q = None if p is None or not p.complete else scale_to_border(packer, p, width, height, g, c, cg)
+        if q is not None and (best is None or q.density > best.density):
+            best, best_w = q, w
+        if floor is not None and (q is None or q.density <= floor):
+            misses += 1
+            reach = _reach(packer, p, width, height, g, c) if p is not None and p.complete else 0.0
+            if (misses >= 2 or reach < 0.95 * floor) and (best is None or best.density <= floor):
+                break                         # far below the density to beat, or twice below it
+        if p is None:                         # a chart wider than the strip
+            w = int(np.ceil(w * 1.1))
+            continue
+        # steer the aspect of the layout (height_used x w) to the atlas's
+        ratio = (p.height_used / max(w, 1)) / (ch / cw)
+        step = float(np.clip(np.sqrt(ratio), 0.9, 1.1))
+        if abs(step - 1.0) < 0.008:
+            break
+        w = int(round(w * step))
+    return best, best_w
+
+
+def grow_square(packer, gutter_px, density, *, quantum=4, max_side=16384):
+    """Smallest square side (a multiple of ``quantum``) whose strip holds every chart at ``density``.
+
+    Returns (side, ShapePacking) or (None, side needed at least) when it exceeds ``max_side``.
+    """
+    g = int(gutter_px)
+    area_px = float(packer.area.sum()) * density * density
+    side = int(quantum * np.ceil(np.sqrt(area_px / 0.8) / quantum))
+    for _ in range(64):
+        if side > max_side:
+            return None, side
+        p = packer.pack(density, side, None, g)
+        if p is not None and p.height_used <= side:
+            return side, p
+        need = 1.25 * side if p is None else max(side + quantum, np.sqrt(side * p.height_used))   # None: too narrow
+        side = int(quantum * np.ceil(need / quantum))
+    return None, side
+
+
+def grow_rectangle(packer, gutter_px, density, *, quantum=4, max_side=16384):
+    """Smallest-area ``width x height`` atlas (sides multiples of ``quantum``) holding every chart at
+    ``density``: strips of widths ``sqrt(area) * 2^k`` (k = 0..6, at most ``max_side``) are packed (a
+    strip stops once it needs more texels than the best so far) and the one needing the fewest texels
+    wins (ties: the squarer). Returns (width, height, ShapePacking) or (None, None, None) when no strip
+    fits within ``max_side``.
+    """
+    g = int(gutter_px)
+    root = np.sqrt(float(packer.area.sum()) * density * density)
+    widths = sorted({int(quantum * np.ceil(min(max(root * 2.0 ** k, 64), max_side) / quantum)) for k in range(7)})
+    best = None
+    for w in widths:                          # at most seven strips
+        limit = max_side if best is None else min(max_side, best[0][0] // w)
+        p = packer.pack(density, w, None, g, give_up_above=limit)
+        if p is None or not p.complete:
+            continue
+        h = int(quantum * np.ceil(p.height_used / quantum))
+        if h > max_side:
+            continue
+        key = (w * h, abs(np.log(w / h)))
+        if best is None or key < best[0]:
+            best = (key, w, h, p)
+    return (None, None, None) if best is None else best[1:]
