@@ -12,6 +12,15 @@ import numpy as np
 from uvbake.atlas.shapepack import ShapePacking
 
 
+def _coarse_factor(width, height, coarse_px):
+    """The power of two ``c`` making the long side about ``coarse_px`` (the short side at least 32)."""
+    c = 1
+    while (max(width, height) // (2 * c) >= coarse_px and min(width, height) // (2 * c) >= 32
+           and width % (2 * c) == 0 and height % (2 * c) == 0):
+        c *= 2
+    return c
+
+
 def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
     """Bracketed search for the largest feasible density: the height a trial needs steers the next one
     (at a fixed width the height grows like density^2), kept inside the bracket [lo, hi]."""
@@ -49,10 +58,7 @@ def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, 
     """
     g = int(gutter_px)
     area = float(packer.area.sum())
-    c = 1
-    while (max(width, height) // (2 * c) >= coarse_px and min(width, height) // (2 * c) >= 32
-           and width % (2 * c) == 0 and height % (2 * c) == 0):
-        c *= 2
+    c = _coarse_factor(width, height, coarse_px)
     top = np.sqrt(width * height / area) if area > 0 else 1.0
     cw, ch, cg = width // c, height // c, -(-g // c)
     coarse_tol = rel_tol if c == 1 or fine_packs == 0 else 2.5 * rel_tol      # the fine trials refine it
@@ -122,11 +128,8 @@ def fit_width(packer, width, height, gutter_px, guess, *, coarse_px=256, packs=5
     full-resolution ShapePacking, or None.
     """
     g = int(gutter_px)
-    c = 1
-    while (max(width, height) // (2 * c) >= coarse_px and min(width, height) // (2 * c) >= 32
-           and width % (2 * c) == 0 and height % (2 * c) == 0):
-        c *= 2
-    cw, ch, cg = width // c, height // c, -(-g // c)
+    c = _coarse_factor(width, height, coarse_px)
+    cg = -(-g // c)
     best, d0 = None, 0.97 * guess / c
     for _ in range(40):                       # a density too high for every width: lower it
         best, w = _width_trials(packer, width, height, g, c, cg, d0, width // c, packs, floor)

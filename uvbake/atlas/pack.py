@@ -457,51 +457,74 @@ def _place_free_scale(uvs, faces, N, g, rotate, used):
     return (*_place_unrotated(uvs, faces, N, g), used)
 
 
+def _shape_angles(rects, rotate, few):
+    """Base rotations of every chart: its minimum-area-rectangle angle (+ quarter turns); the six biggest
+    also at 45 degrees from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4
+    on sphere_cap), unless they are longer than 3:1 (a diagonal long chart rasterises a mostly empty
+    square); with ``few`` charts (<= 4) also 22.5 and 67.5 degrees from it (bumpy +1.0 point, paid by
+    one width round instead of two)."""
+    n = len(rects)
+    if not rotate:
+        return [np.zeros(1) for _ in range(n)]
+    big = set(np.lexsort((np.arange(n), -rects[:, 1] * rects[:, 2]))[:6].tolist())
+    big = {i for i in big if rects[i, 1] <= 3 * rects[i, 2]}
+    angles = [np.array([t, t + np.pi / 4] if i in big else [t]) for i, t in enumerate(rects[:, 0])]
+    if few:
+        angles = [np.concatenate([a, a[0] + np.array([np.pi / 8, 3 * np.pi / 8])]) for a in angles]
+    return angles
+
+
+def _fit_free_scale(packer, W, H, g, guess, few):
+    """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
+    from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
+
+    if len(packer.uvs) >= 12:
+        p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
+    else:       # few charts: one raster, strips of several widths, each layout scaled to the atlas
+        area = float(packer.area.sum())
+        p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
+                      floor=guess, rounds=1 if few else 2)
+    if p is None and guess is not None:
+        return None
+    if p is None:
+        raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
+                         f"take the room; reduce gutter_px or increase texture_size_px")
+    return scale_to_border(packer, p, W, H, g)
+
+
+def _grow(packer, g, density, mip_levels, aspect):
+    """A growing atlas at a fixed ``density``: (W, H, ShapePacking)."""
+    from uvbake.atlas.fit import grow_rectangle, grow_square
+
+    if aspect == "free":
+        W, H, p = grow_rectangle(packer, g, density, quantum=max(4, 2 ** mip_levels))
+        if W is None:
+            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side; lower "
+                             f"texel_density")
+        return W, H, p
+    W, p = grow_square(packer, g, density, quantum=max(4, 2 ** mip_levels))
+    if W is None:
+        raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side ({p} at least); "
+                         f"lower texel_density")
+    return W, W, p
+
+
 def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing.
 
     With ``guess`` (a box packing's density) the free-scale search gives up, returning None, as soon as
     it is clear shapes will not beat it.
     """
-    from uvbake.atlas.fit import fit_scale, fit_width, grow_rectangle, grow_square, scale_to_border
     from uvbake.atlas.shapepack import ShapePacker
 
-    # each chart at its minimum-area-rectangle angle (+ quarter turns); the six biggest also at 45 degrees
-    # from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4 on sphere_cap),
-    # unless they are longer than 3:1 (a diagonal long chart rasterises a mostly empty square)
-    rects = rects if rotate else np.zeros((len(uvs), 3))
-    big = set(np.lexsort((np.arange(len(uvs)), -rects[:, 1] * rects[:, 2]))[:6].tolist()) if rotate else set()
-    big = {i for i in big if rects[i, 1] <= 3 * rects[i, 2]}
-    angles = [np.array([t, t + np.pi / 4] if i in big else [t]) for i, t in enumerate(rects[:, 0])]
     few = rotate and density is None and len(uvs) <= 4
-    if few:         # up to 4 charts: 22.5-degree steps (bumpy +1.0 point; paid by one width round, not two)
-        angles = [np.concatenate([a, a[0] + np.array([np.pi / 8, 3 * np.pi / 8])]) for a in angles]
-    packer = ShapePacker(uvs, faces, angles, quarter_turns=bool(rotate))
+    packer = ShapePacker(uvs, faces, _shape_angles(rects, rotate, few), quarter_turns=bool(rotate))
     if density is None:
-        # full-resolution trials add <= 1.2 points below 12 charts (bench/pack.py) at 2-3x the time
-        if len(uvs) >= 12:
-            p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
-        else:       # few charts: one raster, strips of several widths, each layout scaled to the atlas
-            area = float(packer.area.sum())
-            p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                          floor=guess, rounds=1 if few else 2)
-        if p is None and guess is not None:
-            return None
+        p = _fit_free_scale(packer, W, H, g, guess, few)
         if p is None:
-            raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
-                             f"take the room; reduce gutter_px or increase texture_size_px")
-        p = scale_to_border(packer, p, W, H, g)
-    elif W is None and aspect == "free":
-        W, H, p = grow_rectangle(packer, g, density, quantum=max(4, 2 ** mip_levels))
-        if W is None:
-            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side; lower "
-                             f"texel_density")
+            return None
     elif W is None:
-        W, p = grow_square(packer, g, density, quantum=max(4, 2 ** mip_levels))
-        if W is None:
-            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side ({p} at least); "
-                             f"lower texel_density")
-        H = W
+        W, H, p = _grow(packer, g, density, mip_levels, aspect)
     else:
         p = packer.pack(density, W, None, g)
         if p is None or p.height_used > H:
