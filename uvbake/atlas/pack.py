@@ -457,13 +457,12 @@ def _place_free_scale(uvs, faces, N, g, rotate, used):
     return (*_place_unrotated(uvs, faces, N, g), used)
 
 
-def _shape_angles(rects, rotate, few):
+def _shape_angles(n, rects, rotate, few):
     """Base rotations of every chart: its minimum-area-rectangle angle (+ quarter turns); the six biggest
     also at 45 degrees from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4
     on sphere_cap), unless they are longer than 3:1 (a diagonal long chart rasterises a mostly empty
     square); with ``few`` charts (<= 4) also 22.5 and 67.5 degrees from it (bumpy +1.0 point, paid by
     one width round instead of two)."""
-    n = len(rects)
     if not rotate:
         return [np.zeros(1) for _ in range(n)]
     big = set(np.lexsort((np.arange(n), -rects[:, 1] * rects[:, 2]))[:6].tolist())
@@ -518,7 +517,7 @@ def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rect
     from uvbake.atlas.shapepack import ShapePacker
 
     few = rotate and density is None and len(uvs) <= 4
-    packer = ShapePacker(uvs, faces, _shape_angles(rects, rotate, few), quarter_turns=bool(rotate))
+    packer = ShapePacker(uvs, faces, _shape_angles(len(uvs), rects, rotate, few), quarter_turns=bool(rotate))
     if density is None:
         p = _fit_free_scale(packer, W, H, g, guess, few)
         if p is None:
