@@ -477,7 +477,7 @@ def _fit_free_scale(packer, W, H, g, guess, few):
     """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
-    if len(packer.uvs) >= 12:
+    if len(packer.uvs) >= 32:   # fit_width below: 2-5x faster from 12 charts on, -1.6..+1.5 points
         p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
     else:       # few charts: one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
