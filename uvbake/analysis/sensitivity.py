@@ -301,7 +301,7 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
         Sorted and de-duplicated before solving.
     labels : (m,) int array, optional
         Per-face segment labels (see :func:`uvbake.mesh.charts.split_charts`).
-    init : {"lscm", "tutte", "random"}
+    init : {"lscm", "tutte", "random", "isomap", "laplacian"}
         Start of every solve (of the first one with ``warm_start``).
     warm_start : bool
         Start each alpha from the previous alpha's solution (reported per record in ``started_from``).
