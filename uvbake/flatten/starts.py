@@ -148,7 +148,8 @@ def isomap(V, F, *, landmarks=ISOMAP_LANDMARKS):
 def laplacian_eigenmap(V, F):
     """Laplacian eigenmap (Belkin and Niyogi 2003) with the mesh's cotangent Laplacian L and lumped
     mass matrix M: the two eigenvectors of L x = lambda M x after the constant one, by shift-invert
-    Lanczos (scipy's eigsh, sigma just below 0 so L - sigma M is positive definite), each scaled by
+    Lanczos (scipy's eigsh, sigma just below 0 so L - sigma M is positive definite and uvbake's sparse
+    Cholesky applies its inverse), each scaled by
     1/sqrt(lambda) (the heat-kernel weighting, which keeps the slower mode larger).
     scikit-learn's SpectralEmbedding does not do this job: it builds an affinity graph from point
     distances (k nearest neighbours in R^3), not the surface's Laplacian.
@@ -162,7 +163,14 @@ def laplacian_eigenmap(V, F):
     M = sp.diags(np.bincount(F.ravel(), weights=np.repeat(area / 3.0, 3), minlength=n))
     scale = float(L.diagonal().mean() / M.diagonal().mean())
     v0 = np.random.default_rng(0).standard_normal(n)        # seeded: same input, same map
-    lam, vec = spla.eigsh(L.tocsc(), k=3, M=M.tocsc(), sigma=-1e-8 * scale, which="LM", v0=v0)
+    from uvbake.flatten.solvers.linalg import make_solver
+
+    sigma = -1e-8 * scale
+    A = (L - sigma * M).tocsc()                 # positive definite: the sparse Cholesky applies it
+    solver = make_solver(A)
+    solver.factor(A, 0.0)
+    op = spla.LinearOperator(A.shape, matvec=solver.solve, dtype=np.float64)
+    lam, vec = spla.eigsh(L.tocsc(), k=3, M=M.tocsc(), sigma=sigma, which="LM", v0=v0, OPinv=op)
     order = np.argsort(lam)
     lam, vec = lam[order][1:], vec[:, order][:, 1:]
     vec = vec * np.sign(vec[np.argmax(np.abs(vec), axis=0), [0, 1]])   # eigsh's sign is arbitrary
