@@ -53,6 +53,18 @@ def load(name):
     return c.V, c.F
 
 
+def _save_small(fig, path):
+    """Save a figure as a 16-colour palette PNG (line drawings: a tenth of the RGBA size)."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    buf.seek(0)
+    Image.open(buf).convert("RGB").quantize(colors=16).save(path, optimize=True)
+
+
 def table3(meshes, alpha=0.5):
     import uvbake
 
@@ -116,7 +128,7 @@ def fig6(name, alpha=0.5, snapshot=10):
     fig.tight_layout()
     DOCS.mkdir(parents=True, exist_ok=True)
     path = DOCS / f"fig6_{name}.png"
-    fig.savefig(path)
+    _save_small(fig, path)
     plt.close(fig)
     return "\n".join(lines) + f"\n\n![Fig. 6 on {name}]({path.relative_to(HERE.parent)})", rows
 
@@ -151,7 +163,7 @@ def fig7(name, alphas=(0.1, 0.3, 0.5, 0.7, 0.9)):
     fig.tight_layout()
     DOCS.mkdir(parents=True, exist_ok=True)
     path = DOCS / f"fig7_{name}.png"
-    fig.savefig(path)
+    _save_small(fig, path)
     plt.close(fig)
     lines = ["| alpha | " + " | ".join(f"{x:g}" for x in a) + " |", "|---|" + "---:|" * len(a),
              "| F* | " + " | ".join(f"{rec.energy:.5g}" for rec in s.records) + " |",
