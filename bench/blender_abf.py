@@ -41,8 +41,8 @@ def abf(V, F, *, timeout_s=600):
 
 
 def _main(src, dst):
-    import bpy
     import bmesh  # noqa: F401  (loads Blender's mesh module with bpy)
+    import bpy
     import numpy as np
 
     data = np.load(src)

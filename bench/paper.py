@@ -41,10 +41,11 @@ FIG6_INITS = ("isomap", "laplacian", "random", "lscm")
 def load(name):
     """One disk of the mesh: the mesh itself when it is one (beetle), else the largest chart of the
     pipeline's cut (uvbake.mesh.cut.cut_to_disks) for closed meshes."""
+    from peers import MESHES
+
     import uvbake
     from uvbake.io.load import load_mesh
     from uvbake.mesh.cut import cut_to_disks
-    from peers import MESHES
 
     m = load_mesh(MESHES / f"{name}.off")
     V, F = np.asarray(m.V, np.float64), np.asarray(m.F, np.int64)
@@ -68,7 +69,7 @@ def _save_small(fig, path):
 def table3(meshes, alpha=0.5):
     import uvbake
 
-    lines = [f"| mesh | vertices | init | iterations (at 0.1) | paper | F* | grad norm | lambda_min | local min | time (s) |",
+    lines = ["| mesh | vertices | init | iterations (at 0.1) | paper | F* | grad norm | lambda_min | local min | time (s) |",
              "|---|---:|---|---:|---:|---:|---:|---:|---|---:|"]
     rows = []
     for name in meshes:
@@ -173,9 +174,10 @@ def fig7(name, alphas=(0.1, 0.3, 0.5, 0.7, 0.9)):
 
 
 def table4(meshes):
-    import uvbake
     from blender_abf import abf
     from peers import available, igl_arap, igl_lscm
+
+    import uvbake
 
     def ours(V, F):
         return uvbake.parameterize(V, F, alpha=0.5, init="lscm").uv

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 
 import uvbake
-from meshgen import bumpy_disk
 from uvbake.flatten.energy import DistortionEnergy
 from uvbake.flatten.solvers.certificate import certify, gauge_basis
 from uvbake.flatten.starts import isomap, laplacian_eigenmap
+
+from meshgen import bumpy_disk
 
 
 @pytest.mark.parametrize("start", [isomap, laplacian_eigenmap])
