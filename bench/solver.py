@@ -4,7 +4,9 @@
 
 Needs ../shared/meshes (not shipped). Iterations are factorisations, rejected steps included;
 'grad' is the scale-free gradient norm (mesh and map at unit mean edge length); random starts go
-through the alpha = 0.1 continuation (its iterations are included and shown in brackets).
+through the alpha = 0.1 continuation (its iterations are included and shown in brackets);
+'lambda_min' is the second-order certificate (smallest Hessian eigenvalue off the rigid gauge, in
+the scale-free frame; its time is included).
 """
 
 import argparse
@@ -31,8 +33,9 @@ def main():
 
     print(f"# uvbake LM solver, {platform.processor() or platform.machine()}, "
           f"linear solver {'CHOLMOD' if cholmod_available() else 'SuperLU'}\n")
-    print("| mesh | vertices | alpha | init | iterations | time (s) | F* | grad norm | converged | flipped |")
-    print("|---|---:|---:|---|---:|---:|---:|---:|---|---:|")
+    print("| mesh | vertices | alpha | init | iterations | time (s) | F* | grad norm | converged | lambda_min "
+          "| flipped |")
+    print("|---|---:|---:|---|---:|---:|---:|---:|---|---:|---:|")
     for name in args.meshes:
         m = load_mesh(MESHES / f"{name}.off")
         for init in args.inits:
@@ -42,7 +45,7 @@ def main():
                 its = f"{r.iterations}" + (f" ({cont['iterations']} at 0.1)" if cont else "")
                 print(f"| {name} | {len(m.V):,} | {alpha:g} | {init} | {its} | {r.time_s:.2f} | "
                       f"{r.energy:.6g} | {r.grad_norm:.1e} | {'yes' if r.converged else 'no: ' + r.stop_reason} | "
-                      f"{r.n_flipped} |", flush=True)
+                      f"{r.lambda_min:.2e}{'' if r.is_local_minimum else ' (not a minimum)'} | {r.n_flipped} |", flush=True)
 
 
 if __name__ == "__main__":

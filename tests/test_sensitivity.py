@@ -160,3 +160,38 @@ def test_sweep_command_errors_are_one_line(args, words, capsys, tmp_path):
     err = capsys.readouterr().err
     assert words in err and err.count("\n") == 1 and "Traceback" not in err
     assert main([str(tmp_path / "nope.ply")]) == 2
+
+
+def _record(alpha, d_area, d_angle, flips=0, overlaps=0, area_ratio=1.0):
+    from uvbake.analysis.sensitivity import AlphaRecord
+
+    return AlphaRecord(alpha=alpha, energy=alpha * d_area + (1 - alpha) * d_angle, energy_area=d_area,
+                       energy_angle=d_angle, iterations=1, evaluations=1, n_flipped=flips, overlaps=overlaps,
+                       converged=True, grad_norm=0.0, uv_area_ratio=area_ratio, stop_reasons=["converged"],
+                       started_from="lscm", history=np.zeros(1), time_s=0.0)
+
+
+def _result(records):
+    from uvbake.analysis.sensitivity import SweepResult
+
+    z = np.zeros(len(records))
+    return SweepResult(records=records, sensitivity=z, dF_dalpha=z, dF_dalpha_envelope=z,
+                       sensitivity_envelope=z, init="lscm", warm_start=False, backend="lm", n_charts=1)
+
+
+def test_recommend_alpha_prefers_valid_maps_then_least_combined_distortion():
+    from uvbake.analysis.sensitivity import recommend_alpha
+
+    # distortions relative to the largest (area 8, angle 10): combined 0+1, 0.25+0.5, 0.5+0.2, 1+0.1
+    recs = [_record(0.0, 0.0, 10.0), _record(0.3, 2.0, 5.0), _record(0.6, 4.0, 2.0, flips=3),
+            _record(0.9, 8.0, 1.0)]
+    rec = recommend_alpha(_result(recs))
+    # 0.6 distorts least (0.7) but flips; among the valid ones 0.3 (0.75) beats 0.9 (1.1) and 0 (1.0)
+    assert rec["alpha"] == 0.3 and rec["invalid"] == 0
+    assert rec["combined"] == pytest.approx(0.75, abs=1e-12)
+    assert "alpha 0.6 distorts less" in rec["reason"] and "3 flipped" in rec["reason"]
+    # with every map invalid, the fewest invalid triangles win; a collapsed map is never chosen
+    recs = [_record(0.0, 0.0, 10.0, overlaps=5), _record(0.5, 1.0, 1.0, flips=2, area_ratio=1e-6),
+            _record(0.9, 8.0, 1.0, flips=1)]
+    rec = recommend_alpha(_result(recs))
+    assert rec["alpha"] == 0.9 and rec["invalid"] == 1 and "not considered" in rec["reason"]

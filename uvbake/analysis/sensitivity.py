@@ -103,6 +103,7 @@ class SweepResult:
     backend: str
     n_charts: int
     notes: list = field(default_factory=list)
+    recommendation: dict | None = None     # set by recommend_alpha (``uvbake sweep --recommend``)
 
     @property
     def alphas(self):
@@ -119,6 +120,7 @@ class SweepResult:
             "backend": self.backend,
             "charts": self.n_charts,
             "notes": list(self.notes),
+            **({"recommendation": self.recommendation} if self.recommendation else {}),
             "alphas": [float(a) for a in self.alphas],
             "records": [
                 dict(r.to_dict(), sensitivity=_num(s), dF_dalpha=_num(d), dF_dalpha_envelope=_num(de),
@@ -154,8 +156,8 @@ class SweepResult:
         matplotlib.use("Agg", force=False)
         from matplotlib.figure import Figure
 
-        fig = Figure(figsize=(12, 4.6), layout="constrained")
-        ax1, ax2, ax3 = fig.subplots(1, 3)
+        fig = Figure(figsize=(16, 4.6), layout="constrained")
+        ax1, ax2, ax3, ax4 = fig.subplots(1, 4)
         cmap = matplotlib.colormaps["viridis"]
         alphas = self.alphas
         span = (alphas.max() - alphas.min()) or 1.0
@@ -190,6 +192,15 @@ class SweepResult:
         ax3.set_ylabel("S = (alpha / F*) dF*/dalpha")
         ax3.set_title("relative sensitivity")
         ax3.legend(fontsize="small")
+        d_area, d_angle = distortions(self)
+        ax4.plot(alphas, d_area, "o-", label="area: sum (det A - 1)^2 / max")
+        ax4.plot(alphas, d_angle, "s-", label="angle: sum D_angle / max")
+        ax4.plot(alphas, d_area + d_angle, "k.--", label="combined")
+        if self.recommendation:
+            ax4.axvline(self.recommendation["alpha"], color="C3", lw=1.0, label="recommended")
+        ax4.set_xlabel("alpha")
+        ax4.set_title("distortion (each relative to its largest)")
+        ax4.legend(fontsize="small")
         if title:
             fig.suptitle(title)
         import io
@@ -197,6 +208,48 @@ class SweepResult:
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi)
         atomic_write_bytes(path, buf.getvalue())
+
+
+def distortions(result):
+    """Area and angle distortion per alpha (sums of D_area and D_angle over the triangles at each
+    optimum), each divided by its largest value over the sweep so the two are comparable."""
+    da = np.array([r.energy_area for r in result.records], dtype=float)
+    dg = np.array([r.energy_angle for r in result.records], dtype=float)
+    return da / max(da.max(), 1e-300), dg / max(dg.max(), 1e-300)
+
+
+def recommend_alpha(result):
+    """The alpha to use, and why: among the alphas whose per-chart maps have the fewest flipped
+    triangles plus overlapping pairs (each of those is what makes the atlas stage add a chart; zero
+    means the atlas validates with no extra chart) and are not collapsed, the one with the least
+    combined distortion (area + angle, each relative to its largest over the sweep).
+    Stored in ``result.recommendation`` and returned: dict(alpha, reason, combined, invalid)."""
+    recs = result.records
+    d_area, d_angle = distortions(result)
+    combined = d_area + d_angle
+    invalid = np.array([r.n_flipped + (r.overlaps or 0) for r in recs])
+    ok = np.array([r.uv_area_ratio >= COLLAPSED_AREA and r.converged for r in recs])
+    if not ok.any():
+        ok[:] = True
+    fewest = invalid[ok].min()
+    cand = np.flatnonzero(ok & (invalid == fewest))
+    k = int(cand[np.argmin(combined[cand])])
+    best_all = int(np.flatnonzero(ok)[np.argmin(combined[ok])])
+    a = recs[k].alpha
+    why = (f"alpha {a:g}: its combined distortion {combined[k]:.3f} (area {d_area[k]:.3f} + angle "
+           f"{d_angle[k]:.3f}, each relative to its largest over the {len(recs)} alphas) is the least among "
+           f"the alphas whose maps have {'no' if fewest == 0 else f'the fewest ({fewest})'} flipped triangles "
+           f"or overlapping pairs, so the atlas needs "
+           f"{'no extra chart' if fewest == 0 else 'the fewest extra charts'}")
+    if best_all != k:
+        why += (f"; alpha {recs[best_all].alpha:g} distorts less ({combined[best_all]:.3f}) but has "
+                f"{invalid[best_all]} flipped or overlapping triangles, each of which costs a chart split")
+    excluded = [r.alpha for r, o in zip(recs, ok) if not o]
+    if excluded:
+        why += "; not considered (collapsed or not converged): " + ", ".join(f"{x:g}" for x in excluded)
+    result.recommendation = dict(alpha=float(a), reason=why + ".", combined=float(combined[k]),
+                                 invalid=int(fewest))
+    return result.recommendation
 
 
 def require_matplotlib():
@@ -301,7 +354,7 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
         Sorted and de-duplicated before solving.
     labels : (m,) int array, optional
         Per-face segment labels (see :func:`uvbake.mesh.charts.split_charts`).
-    init : {"lscm", "tutte", "random"}
+    init : {"lscm", "tutte", "random", "isomap", "laplacian"}
         Start of every solve (of the first one with ``warm_start``).
     warm_start : bool
         Start each alpha from the previous alpha's solution (reported per record in ``started_from``).

@@ -41,6 +41,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plot", metavar="PNG", help="write the convergence and sensitivity plot here")
     p.add_argument("--csv", metavar="CSV", help="write the numbers as CSV")
     p.add_argument("--json", metavar="JSON", help="write the numbers (and histories) as JSON")
+    p.add_argument("--recommend", action="store_true",
+                   help="recommend an alpha: the least combined angle + area distortion among those whose "
+                        "maps have the fewest flips and overlaps (printed, and in --json)")
     p.add_argument("-q", "--quiet", action="store_true", help="no table on stdout")
 
 
@@ -86,6 +89,11 @@ def run(args: argparse.Namespace) -> int:
                   f"{ov:>5} {r.uv_area_ratio:7.3f}")
         for note in res.notes:
             print(f"note: {note}")
+    if args.recommend:
+        from uvbake.analysis.sensitivity import recommend_alpha
+
+        rec = recommend_alpha(res)
+        print(f"recommended: {rec['reason']}")
     title = f"{args.mesh}: {res.n_charts} chart(s), init {args.init}" + (", warm start" if args.warm_start else "")
     if args.csv:
         res.save_csv(args.csv)

@@ -226,6 +226,7 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
           f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}% "
           f"of {atlas['texture_size_px']} px at {atlas.get('texel_density', 0):.4g} px/unit, "
           f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written)}")
+    print(f"uvbake: {certificate_summary(rep['charts'])}")
     for w in (rep.get("repair") or {}).get("warnings", []):
         print(f"uvbake: warning: {w}", file=sys.stderr)
     for c in rep["charts"]:
@@ -233,6 +234,17 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
             print(f"uvbake: warning: {c['name']} stopped before convergence ({c['stop_reason']}, "
                   f"|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations); raise --max-iter",
                   file=sys.stderr)
+
+
+def certificate_summary(charts: list[dict[str, Any]]) -> str:
+    """One line from the per-chart certificates of the JSON report: 'local minimum: yes, lambda_min = ...'
+    (the smallest over charts)."""
+    lams = [c["lambda_min"] for c in charts if c.get("is_local_minimum") is not None]
+    if not lams:
+        return "local minimum: not certified"
+    bad = sum(1 for c in charts if c.get("is_local_minimum") is False)
+    word = "yes" if bad == 0 else f"no ({bad} of {len(charts)} charts not a certified minimum)"
+    return f"local minimum: {word}, lambda_min = {min(lams):.3g}"
 
 
 def run(args: argparse.Namespace) -> int:

@@ -35,7 +35,7 @@ class SolveOptions:
     ----------
     alpha : float in [0, 1]
         Weight of area preservation; 1 - alpha weighs angle preservation.
-    init : {"lscm", "tutte", "random"}
+    init : {"lscm", "tutte", "random", "isomap", "laplacian"}
         Start map ("random" is seeded by ``seed``).
     backend : {"lm", "lbfgs"}
         Levenberg-Marquardt with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
@@ -51,6 +51,8 @@ class SolveOptions:
         (:func:`uvbake.atlas.guarantee.determinant_step_limit`); ignored for starts with flips.
     continuation : bool
         Solve invalid starts at alpha = 0.1 first (see :func:`uvbake.parameterize`).
+    certificate : bool
+        Compute the second-order certificate (``lambda_min``, ``is_local_minimum`` of the result).
     """
 
     alpha: float = 0.5
@@ -62,6 +64,7 @@ class SolveOptions:
     linear_solver: str = "auto"
     continuation: bool = True
     injective: bool = False
+    certificate: bool = True
 
     def __post_init__(self) -> None:
         try:

@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy, optimal_scale
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions
+from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
 from uvbake.flatten.solvers.linalg import cholmod_available
 from uvbake.flatten.solvers.lm import levenberg_marquardt
@@ -159,6 +160,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
     det = energy.determinants(uvn)
+    cert = certify(energy, uvn, linear_solver=options.linear_solver) if options.certificate else None
     return ParamResult(
         uv=uvn * unit,
         energy=float(DistortionEnergy.value(energy, uvn)),
@@ -176,6 +178,8 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         n_evaluations=int(evaluations),
         extra=extra,
         status=info.status,
+        lambda_min=cert.lambda_min if cert else float("nan"),
+        is_local_minimum=(bool(grad_norm < options.tol) and cert.is_local_minimum) if cert else None,
     )
 
 
@@ -196,7 +200,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
                  backend: str = DEFAULTS.backend, tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter,
                  seed: int = DEFAULTS.seed, uv0: np.ndarray | None = None, callback: Callback | None = None,
                  linear_solver: str = DEFAULTS.linear_solver, continuation: bool = DEFAULTS.continuation,
-                 injective: bool = DEFAULTS.injective, name: str = "chart 0") -> ParamResult:
+                 injective: bool = DEFAULTS.injective, certificate: bool = DEFAULTS.certificate,
+                 name: str = "chart 0") -> ParamResult:
     """Flatten one chart (a connected disk with holes) by minimising the paper's F.
 
     Parameters
@@ -205,8 +210,9 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
     F : (m,3) int array
     alpha : float in [0, 1]
         Weight of area preservation; 1 - alpha weighs angle preservation.
-    init : {"lscm", "tutte", "random"}
-        Start map. "tutte" needs one boundary loop; "random" is seeded by ``seed``.
+    init : {"lscm", "tutte", "random", "isomap", "laplacian"}
+        Start map. "tutte" needs one boundary loop; "random" is seeded by ``seed``; "isomap" and
+        "laplacian" are the paper's Fig. 6 starts (:mod:`uvbake.flatten.starts`).
     backend : {"lm", "lbfgs"}
         Levenberg-Marquardt with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
     tol : float
@@ -226,6 +232,10 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         iterations of both stages are counted). False runs the paper's plain LM from the start.
     injective : bool
         See :class:`uvbake.flatten.options.SolveOptions`: no determinant reaches zero during the LM.
+    certificate : bool
+        Compute the second-order certificate (``lambda_min``, ``is_local_minimum``): the smallest
+        Hessian eigenvalue off the rigid-motion gauge, by shift-invert Lanczos
+        (:mod:`uvbake.flatten.solvers.certificate`). False leaves them NaN / None.
 
     Returns
     -------
@@ -234,7 +244,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         ``iterations``, ``converged``, ``n_flipped``, ``history``, ``time_s``, ``status``.
     """
     options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
-                           linear_solver=linear_solver, continuation=continuation, injective=injective)
+                           linear_solver=linear_solver, continuation=continuation, injective=injective,
+                           certificate=certificate)
     with _one_blas_thread():
         return solve_chart((V, F, name), options, uv0, callback)
 

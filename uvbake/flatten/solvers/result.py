@@ -126,6 +126,12 @@ class ParamResult:
         Wall time of init plus solve.
     status : Status
         Why the last solver run stopped (``stop_reason`` in words).
+    lambda_min : float
+        Smallest Hessian eigenvalue at ``uv`` off the rigid-motion gauge, in the solver's scale-free
+        frame (the paper's Table 3 certificate; :mod:`uvbake.flatten.solvers.certificate`); NaN when
+        not computed.
+    is_local_minimum : bool or None
+        Converged and lambda_min non-negative (to 1e-9 of the Hessian's largest diagonal entry).
     """
 
     uv: np.ndarray
@@ -144,6 +150,15 @@ class ParamResult:
     n_evaluations: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
     status: Status | None = None
+    lambda_min: float = float("nan")
+    is_local_minimum: bool | None = None
+
+    def certificate_line(self) -> str:
+        """The summary line of the second-order certificate."""
+        if self.is_local_minimum is None:
+            return "local minimum: not certified"
+        word = "yes" if self.is_local_minimum else ("no (not converged)" if not self.converged else "no (saddle)")
+        return f"local minimum: {word}, lambda_min = {self.lambda_min:.3g}"
 
     def to_dict(self, *, with_uv: bool = False) -> dict[str, Any]:
         """JSON-ready summary (UVs left out unless asked)."""
@@ -161,6 +176,8 @@ class ParamResult:
             "stop_reason": self.stop_reason,
             "n_flipped": int(self.n_flipped),
             "time_s": float(self.time_s),
+            "lambda_min": float(self.lambda_min),
+            "is_local_minimum": self.is_local_minimum,
             "history": [float(h) for h in self.history],
         }
         d.update(self.extra)
