@@ -61,7 +61,7 @@ _BASE_COLOR = 1.055 * 2.0 ** (1.0 / 2.4) - 0.055
 
 
 def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=256, views=DEFAULT_VIEWS,
-            background=(255, 255, 255), isolate=True, timeout_s=120.0):
+            background=(255, 255, 255), vertex_colors=None, isolate=True, timeout_s=120.0):
     """Render the textured mesh from fixed cameras into one image.
 
     Parameters
@@ -80,6 +80,9 @@ def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=25
         Side of each square view (32 to 2048).
     views : sequence of names from :data:`VIEWS`
     background : RGB triple, 0..255
+    vertex_colors : (n,3) float array in [0,1], optional
+        Multiplied with the texture, as glTF viewers do with ``COLOR_0`` (to see what a file that
+        carries both looks like). Default: the texture alone.
     isolate : bool
         Render in a child process (default; see the module docstring). ``False`` renders in this process.
     timeout_s : float
@@ -100,10 +103,15 @@ def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=25
     if bg.shape != (3,) or np.any(bg < 0) or np.any(bg > 255):
         raise InputError(f"background={background!r} must be an RGB triple of values 0..255")
     params = dict(size_px=int(size_px), views=list(views), background=[int(b) for b in bg])
+    if vertex_colors is not None:
+        vertex_colors = np.asarray(vertex_colors, np.float64)
+        if vertex_colors.ndim != 2 or vertex_colors.shape[0] != len(V) or vertex_colors.shape[1] < 3:
+            raise InputError(f"vertex_colors must be ({len(V)},3), got shape {vertex_colors.shape}")
+        vertex_colors = np.ascontiguousarray(np.clip(vertex_colors[:, :3], 0.0, 1.0))
     if isolate:
-        out = _render_in_child(V, F, corner_uv, image, params, timeout_s)
+        out = _render_in_child(V, F, corner_uv, image, params, timeout_s, vertex_colors)
     else:
-        out = render_views(V, F, corner_uv, image, **params)
+        out = render_views(V, F, corner_uv, image, vertex_colors=vertex_colors, **params)
     if path is not None:
         save_png(path, out)
     return out
@@ -165,7 +173,7 @@ def _linear_to_srgb_u8(img):
     return np.clip(np.rint(y * 255.0), 0, 255).astype(np.uint8)
 
 
-def render_views(V, F, corner_uv, image, *, size_px, views, background):
+def render_views(V, F, corner_uv, image, *, size_px, views, background, vertex_colors=None):
     """Render in this process (Open3D must be importable and able to start its engine)."""
     import open3d as o3d
 
@@ -182,6 +190,8 @@ def render_views(V, F, corner_uv, image, *, size_px, views, background):
     mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
     mesh.triangle_uvs = o3d.utility.Vector2dVector(corner_uv.reshape(-1, 2))
     mesh.triangle_material_ids = o3d.utility.IntVector(np.zeros(len(F), np.int32))
+    if vertex_colors is not None:
+        mesh.vertex_colors = o3d.utility.Vector3dVector(np.asarray(vertex_colors, np.float64))
     tex = o3d.geometry.Image(_linear_to_srgb_u8(image))
     mesh.textures = [tex]
     mat = R.MaterialRecord()
@@ -212,10 +222,11 @@ def render_views(V, F, corner_uv, image, *, size_px, views, background):
     return np.ascontiguousarray(np.hstack(parts))
 
 
-def _render_in_child(V, F, corner_uv, image, params, timeout_s):
+def _render_in_child(V, F, corner_uv, image, params, timeout_s, vertex_colors=None):
     with tempfile.TemporaryDirectory(prefix="uvbake-render-") as tmp:
         src, dst = Path(tmp) / "in.npz", Path(tmp) / "out.npy"
-        np.savez(src, V=V, F=F, corner_uv=corner_uv, image=image, params=np.array(json.dumps(params)))
+        extra = {} if vertex_colors is None else {"vertex_colors": vertex_colors}
+        np.savez(src, V=V, F=F, corner_uv=corner_uv, image=image, params=np.array(json.dumps(params)), **extra)
         env = dict(os.environ)
         try:
             proc = subprocess.run([sys.executable, "-m", "uvbake.render", str(src), str(dst)],
@@ -236,7 +247,8 @@ def _child(argv):
     src, dst = argv
     with np.load(src) as d:
         params = json.loads(str(d["params"]))
-        out = render_views(d["V"], d["F"], d["corner_uv"], d["image"], **params)
+        colors = d["vertex_colors"] if "vertex_colors" in d.files else None
+        out = render_views(d["V"], d["F"], d["corner_uv"], d["image"], vertex_colors=colors, **params)
     np.save(dst, out)
     sys.stdout.flush()
     os._exit(0)          # skip Filament's teardown at interpreter exit (slow, and chatty)

@@ -57,15 +57,22 @@ class UnwrapResult:
     vertex_colors: np.ndarray | None
     report: dict = field(default_factory=dict)
 
-    def save(self, path, *, report_path=None):
-        """Write the textured mesh (OBJ+MTL+PNG or GLB by extension) and optionally the JSON report."""
+    def save(self, path, *, report_path=None, keep_vertex_colors=False):
+        """Write the textured mesh (OBJ+MTL+PNG or GLB by extension) and optionally the JSON report.
+
+        The texture alone carries the colour: viewers multiply vertex colours (glTF ``COLOR_0``, OBJ
+        ``v x y z r g b``) with the texture, so a colour bake would show its colours squared and a
+        checker would look tinted. ``keep_vertex_colors=True`` writes them anyway (for tools that
+        read them as data).
+        """
         import json
 
         from uvbake.io.atomic import atomic_write
         from uvbake.io.export import save_textured
 
         image = self.image if self.image is not None else _blank(self.report["atlas"]["texture_size_px"])
-        written = save_textured(path, self.V, self.F, self.corner_uv, image, vertex_colors=self.vertex_colors)
+        colors = self.vertex_colors if keep_vertex_colors else None
+        written = save_textured(path, self.V, self.F, self.corner_uv, image, vertex_colors=colors)
         if report_path is not None:
             with atomic_write(report_path) as fh:
                 json.dump(self.report, fh, indent=1)

@@ -48,7 +48,8 @@ def save_textured(path, V, F, corner_uv, image, *, vertex_colors=None, name="uvb
     image : (H,W,3) or (H,W,4) uint8 array, or a PIL image
         The texture, row 0 at the top.
     vertex_colors : (n,3) float array in [0,1], optional
-        Written as ``v x y z r g b`` (OBJ) or ``COLOR_0`` (GLB).
+        Written as ``v x y z r g b`` (OBJ) or ``COLOR_0`` (GLB). Viewers multiply them with the
+        texture, so pass them only when the texture does not already carry them.
     name : str
         Material and mesh name.
 
