@@ -134,4 +134,41 @@ def test_readme_example(tmp_path, monkeypatch):
     scope = run_readme_example("import uvbake_open3d", tmp_path, monkeypatch)
     assert isinstance(scope["mesh"], o3d.t.geometry.TriangleMesh)
     assert tuple(scope["uvs"].shape)[1:] == (3, 2) and scope["texture"].rows == 256
+    assert scope["result"].report["charts_final"] == 8          # the scene's labels survive Open3D's reader
     assert (tmp_path / "scene_uv.obj").exists()
+
+
+def test_compute_uvatlas_keywords():
+    """size, gutter, nthreads mean what they mean for compute_uvatlas; max_stretch warns it is unused."""
+    from uvbake.errors import InputError
+
+    mesh = o3d.t.io.read_triangle_mesh(str(SAMPLE_SCENES / "disk_holes.ply"))
+    with pytest.warns(UserWarning, match="max_stretch=0.2 has no effect"):
+        out, result = uvbake_open3d.unwrap(mesh, size=64, gutter=1.5, max_stretch=0.2, parallel_partitions=2,
+                                           nthreads=1, bake=None, return_result=True)
+    atlas = result.report["atlas"]
+    assert atlas["texture_size_px"] == 64 and atlas["gutter_px"] == 2        # 1.5 px rounded up
+    assert result.report["options"]["max_stretch_open3d"] == 0.2
+    assert out.material.texture_maps["albedo"].rows == 64
+    for bad, match in ((dict(size=64.5), "size"), (dict(gutter=-1), "gutter"), (dict(max_stretch=2), "max_stretch"),
+                       (dict(size=64, texture_size_px=128), "disagree"), (dict(nthreads=-1), "nthreads")):
+        with pytest.raises(InputError, match=match):
+            uvbake_open3d.unwrap(mesh, bake=None, **bad)
+
+
+def test_labels_lost_by_open3d_and_found_again(tmp_path):
+    path = SAMPLE_SCENES / "scene.ply"
+    mesh = o3d.t.io.read_triangle_mesh(str(path))
+    assert "segment" not in mesh.triangle and "label" not in mesh.triangle     # Open3D dropped them
+    _, lost = uvbake_open3d.unwrap(mesh, size=64, bake=None, return_result=True)
+    _, kept = uvbake_open3d.unwrap(mesh, size=64, bake=None, face_labels=path, return_result=True)
+    assert lost.report["charts_input"] < kept.report["charts_input"] == 8
+    # a file without labels where labels were expected: a loud warning, charts from components
+    plain = tmp_path / "plain.ply"
+    o3d.t.io.write_triangle_mesh(str(plain), mesh)
+    with pytest.warns(UserWarning, match="has no per-face labels"):
+        uvbake_open3d.unwrap(o3d.t.io.read_triangle_mesh(str(plain)), size=64, bake=None, face_labels=plain)
+    from uvbake.errors import InputError
+
+    with pytest.raises(InputError, match="triangles are not the mesh's"):
+        uvbake_open3d.unwrap(mesh, size=64, bake=None, face_labels=SAMPLE_SCENES / "disk_holes.ply")

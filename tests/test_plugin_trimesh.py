@@ -102,3 +102,18 @@ def test_readme_example(tmp_path, monkeypatch):
     assert isinstance(scope["textured"].visual, trimesh.visual.TextureVisuals)
     assert (tmp_path / "disk_holes_uv.glb").exists()
     assert np.abs(uvbake_trimesh.corner_uv(scope["again"]) - uvbake_trimesh.corner_uv(scope["textured"])).max() < 1e-6
+
+
+def test_signature_of_trimesh_unwrap(hemisphere):
+    """Trimesh.unwrap(image=None): the image is assigned to the material, nothing is baked."""
+    import inspect
+
+    from PIL import Image
+
+    ours = list(inspect.signature(uvbake_trimesh.unwrap).parameters)
+    theirs = list(inspect.signature(trimesh.Trimesh.unwrap).parameters)
+    assert ours[:len(theirs)] == ["mesh", *theirs[1:]]                 # (self | mesh, image)
+    img = Image.new("RGB", (32, 16), (10, 200, 30))
+    out, result = uvbake_trimesh.unwrap(hemisphere, img, texture_size_px=64, return_result=True)
+    assert result.image is None and result.report["options"]["bake"] is None
+    assert np.array_equal(np.asarray(uvbake_trimesh.texture_image(out)), np.asarray(img))

@@ -1,8 +1,8 @@
 """uvbake for Open3D: ``unwrap(mesh)`` where a workflow would call ``TriangleMesh.compute_uvatlas``.
 
     import open3d as o3d, uvbake_open3d
-    mesh = o3d.t.io.read_triangle_mesh("sample_scenes/scene.ply")
-    mesh = uvbake_open3d.unwrap(mesh, alpha=0.5, texture_size_px=512)
+    mesh = o3d.t.io.read_triangle_mesh("sample_scenes/scene.ply")       # Open3D drops the PLY's labels
+    mesh = uvbake_open3d.unwrap(mesh, size=512, gutter=2, face_labels="sample_scenes/scene.ply")
     mesh.triangle.texture_uvs                       # (m,3,2) float32, as compute_uvatlas leaves it
     mesh.material.texture_maps["albedo"]            # the baked texture (open3d.t.geometry.Image)
     o3d.t.io.write_triangle_mesh("scene_uv.obj", mesh)
@@ -30,15 +30,37 @@ import numpy as np
 __all__ = ["unwrap", "to_open3d"]
 
 
-def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", return_result=False,
+def unwrap(mesh, *, size=None, gutter=None, max_stretch=None, parallel_partitions=None, nthreads=None,
+           face_labels=None, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", return_result=False,
            **options):
     """Unwrap an Open3D triangle mesh (tensor or legacy) and return the same kind, textured.
+
+    Takes ``TriangleMesh.compute_uvatlas``'s keywords with the same meaning where uvbake has the
+    concept, so ``mesh.compute_uvatlas(size=512, gutter=2)`` becomes
+    ``mesh = uvbake_open3d.unwrap(mesh, size=512, gutter=2)``.
 
     Parameters
     ----------
     mesh : open3d.t.geometry.TriangleMesh or open3d.geometry.TriangleMesh
+    size : int, optional
+        compute_uvatlas's texture side in pixels: the same as ``texture_size_px``.
+    gutter : float, optional
+        compute_uvatlas's space around the charts in pixels: ``gutter_px``, rounded up to whole texels.
+    max_stretch : float in [0, 1], optional
+        compute_uvatlas's stretch bound (0: none allowed, 1: any). uvbake's charting has no stretch
+        bound on this version, so the value is checked, recorded in the report's ``options`` and has no
+        effect; a ``UserWarning`` says so. Charts come from the face labels, connected components,
+        the automatic cut to disks and the flip/overlap guarantee.
+    parallel_partitions, nthreads : int, optional
+        compute_uvatlas's threading: ``nthreads`` is ``workers`` (charts solved in parallel; 0 = all
+        cores); ``parallel_partitions`` is accepted and has no effect (uvbake solves whole charts).
+    face_labels : (m,) int array, or the path of the mesh file, optional
+        Per-face segment labels. Open3D's readers drop PLY face properties, so a labelled PLY read with
+        ``o3d.t.io.read_triangle_mesh`` arrives without its labels: pass the file's path here and uvbake
+        reads them (the file's triangles must be the mesh's). A path whose file has no labels warns.
+        Labels attached to a tensor mesh as ``mesh.triangle.segment`` (or ``label``, ...) are used too.
     alpha, texture_size_px, gutter_px, **options
-        As in :func:`uvbake.atlas.pipeline.unwrap` (``init``, ``backend``, ``face_labels``, ``workers``, ...).
+        As in :func:`uvbake.atlas.pipeline.unwrap` (``init``, ``backend``, ``workers``, ...).
     bake : {"auto", "checker", "vertex-colors", None}
         ``"auto"``: the vertex colours when the mesh has them, else a checker. ``None``: UVs only, a
         plain white texture.
@@ -58,13 +80,97 @@ def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", r
     if not tensor and not isinstance(mesh, o3d.geometry.TriangleMesh):
         raise InputError(f"uvbake_open3d.unwrap takes an open3d.t.geometry.TriangleMesh or "
                          f"open3d.geometry.TriangleMesh, got {type(mesh).__name__}")
+    texture_size_px = _same("size", size, "texture_size_px", texture_size_px, _whole_px(size, "size"))
+    gutter_px = _same("gutter", gutter, "gutter_px", gutter_px, _gutter_px(gutter))
+    if nthreads is not None:
+        if isinstance(nthreads, bool) or not isinstance(nthreads, (int, np.integer)) or nthreads < 0:
+            raise InputError(f"nthreads={nthreads!r} must be a whole number >= 0 (0: all cores)")
+        options.setdefault("workers", int(nthreads) or None)
+    if max_stretch is not None:
+        _stretch_unused(max_stretch)
+    if face_labels is not None and not isinstance(face_labels, np.ndarray) and _is_path(face_labels):
+        face_labels = _labels_from_file(face_labels, mesh, tensor)
     if bake == "auto":
         has_colors = ("colors" in mesh.vertex) if tensor else mesh.has_vertex_colors()
         bake = "vertex-colors" if has_colors else "checker"
     result = _unwrap(mesh, alpha=alpha, texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake,
-                     **options)
+                     face_labels=face_labels, **options)
+    if max_stretch is not None:
+        result.report["options"]["max_stretch_open3d"] = float(max_stretch)
     out = to_open3d(result, like=mesh)
     return (out, result) if return_result else out
+
+
+def _same(open3d_name, open3d_value, name, value, converted):
+    """compute_uvatlas's keyword wins over uvbake's default; both given and different is an error."""
+    from uvbake.errors import InputError
+
+    if open3d_value is None:
+        return value
+    defaults = {"texture_size_px": 1024, "gutter_px": 4}
+    if value != defaults[name] and value != converted:
+        raise InputError(f"{open3d_name}={open3d_value!r} and {name}={value!r} disagree; pass one of them")
+    return converted
+
+
+def _whole_px(size, name):
+    from uvbake.errors import InputError
+
+    if size is None:
+        return None
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)):
+        raise InputError(f"{name}={size!r} must be a whole number of pixels (compute_uvatlas's texture side)")
+    return int(size)
+
+
+def _gutter_px(gutter):
+    from uvbake.errors import InputError
+
+    if gutter is None:
+        return None
+    if isinstance(gutter, bool) or not isinstance(gutter, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(gutter) or gutter < 0:
+        raise InputError(f"gutter={gutter!r} must be a number of pixels >= 0")
+    return int(np.ceil(gutter))                  # at least the space asked for
+
+
+def _stretch_unused(max_stretch):
+    import warnings
+
+    from uvbake.errors import InputError
+
+    if isinstance(max_stretch, bool) or not isinstance(max_stretch, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= max_stretch <= 1.0:
+        raise InputError(f"max_stretch={max_stretch!r} must be in [0, 1] as for compute_uvatlas")
+    warnings.warn(f"uvbake_open3d.unwrap: max_stretch={max_stretch} has no effect: uvbake's charts come from "
+                  "face labels, connected components, the cut to disks and the flip/overlap guarantee, not "
+                  "from a stretch bound; drop max_stretch, or pass face_labels to choose the charts",
+                  UserWarning, stacklevel=3)
+
+
+def _is_path(x):
+    import os
+
+    return isinstance(x, (str, os.PathLike))
+
+
+def _labels_from_file(path, mesh, tensor):
+    """The per-face labels of the file ``mesh`` was read from (Open3D's readers drop them)."""
+    import warnings
+
+    from uvbake.errors import InputError
+    from uvbake.io.load import load_mesh
+
+    source = load_mesh(path)
+    F = mesh.triangle.indices.numpy() if tensor else np.asarray(mesh.triangles)
+    if source.F.shape != F.shape or not np.array_equal(source.F, F):
+        raise InputError(f"face_labels={str(path)!r}: its triangles are not the mesh's ({len(source.F)} in the "
+                         f"file, {len(F)} in the mesh); pass the file the mesh was read from, unchanged")
+    if source.face_labels is None:
+        warnings.warn(f"uvbake_open3d.unwrap: face_labels={str(path)!r} has no per-face labels (a face "
+                      "property named segment, label, ...); the charts come from connected components only",
+                      UserWarning, stacklevel=3)
+    return source.face_labels
 
 
 def _texture(result):

@@ -25,14 +25,16 @@ import numpy as np
 __all__ = ["unwrap", "export", "load", "corner_uv", "texture_image"]
 
 
-def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", return_result=False,
-           **options):
+def unwrap(mesh, image=None, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto",
+           return_result=False, **options):
     """Unwrap a ``trimesh.Trimesh`` into a validated atlas and return a textured copy.
 
     Parameters
     ----------
     mesh : trimesh.Trimesh
         Not modified. Per-face segment labels may be given as ``face_labels=``.
+    image : PIL.Image, optional
+        As in ``Trimesh.unwrap(image=None)``: the image to assign to the material; nothing is baked.
     alpha, texture_size_px, gutter_px, **options
         As in :func:`uvbake.atlas.pipeline.unwrap` (``init``, ``backend``, ``face_labels``, ``workers``, ...).
     bake : {"auto", "checker", "vertex-colors", None}
@@ -55,11 +57,15 @@ def unwrap(mesh, *, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", r
     if not isinstance(mesh, trimesh.Trimesh):
         raise InputError(f"uvbake_trimesh.unwrap takes a trimesh.Trimesh, got {type(mesh).__name__}; "
                          "for a Scene use scene.dump(concatenate=True)")
-    if bake == "auto":
+    if image is not None:
+        if not hasattr(image, "convert"):
+            raise InputError(f"image must be a PIL image, as for Trimesh.unwrap, got {type(image).__name__}")
+        bake = None
+    elif bake == "auto":
         bake = "vertex-colors" if _has_vertex_colors(mesh) else "checker"
     result = _unwrap(mesh, alpha=alpha, texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake,
                      **options)
-    out = to_trimesh(result)
+    out = to_trimesh(result, image=image)
     return (out, result) if return_result else out
 
 
@@ -68,19 +74,22 @@ def _has_vertex_colors(mesh):
     return getattr(vis, "kind", None) == "vertex"
 
 
-def to_trimesh(result):
-    """A textured ``trimesh.Trimesh`` (vertices split per (vertex, UV)) from an ``UnwrapResult``."""
+def to_trimesh(result, *, image=None):
+    """A textured ``trimesh.Trimesh`` (vertices split per (vertex, UV)) from an ``UnwrapResult``
+    (its baked texture, or ``image`` when given)."""
     import trimesh
     from PIL import Image
 
     from uvbake.io.corners import split_corners
 
     source, uv, F_new = split_corners(result.F, result.corner_uv)
-    image = result.image
     if image is None:
-        size = result.report["atlas"]["texture_size_px"]
-        image = np.full((size, size, 3), 255, np.uint8)
-    material = trimesh.visual.material.SimpleMaterial(image=Image.fromarray(image), diffuse=[255, 255, 255, 255])
+        texture = result.image
+        if texture is None:
+            size = result.report["atlas"]["texture_size_px"]
+            texture = np.full((size, size, 3), 255, np.uint8)
+        image = Image.fromarray(texture)
+    material = trimesh.visual.material.SimpleMaterial(image=image, diffuse=[255, 255, 255, 255])
     visual = trimesh.visual.TextureVisuals(uv=uv, material=material)
     out = trimesh.Trimesh(vertices=result.V[source], faces=F_new, visual=visual, process=False,
                           validate=False)
