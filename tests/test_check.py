@@ -55,7 +55,10 @@ def test_overlapping_obj_exits_1_and_writes_json_and_image(tmp_path, capsys):
     from PIL import Image
 
     img = np.asarray(Image.open(png).convert("RGB"))
-    assert img.shape == (64, 64, 3)
+    assert img.shape[0] > 64 and img.shape[1:] == (64, 3)
+    legend = img[64:]                                # the legend strip: dark text on white
+    assert np.any(legend.max(axis=2) < 100) and np.mean(legend == 255) > 0.5
+    img = img[:64]
     # (0.2, 0.15) is inside both triangles; the image has v pointing up
     assert tuple(img[63 - int(0.15 * 64), int(0.2 * 64)]) == OVERLAP_RGB
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.obj", "overlaps.png", "report.json"]

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from uvbake.errors import InputError, UvbakeError
+from uvbake.pictures import atlas_image  # noqa: F401  (the 2D atlas picture beside the 3D preview)
 
 
 class RenderError(UvbakeError, RuntimeError):
@@ -52,6 +53,11 @@ VIEWS = {
     "angle": ((1.0, 1.0, 1.0), (0.0, 1.0, 0.0)),
 }
 DEFAULT_VIEWS = ("front", "back", "angle")
+#: lighting modes: "unlit" shows the texture's own values; "lit" shades it with a sun light and an
+#: ambient term (shape reads better; colours are no longer the texture's bytes)
+LIGHTING = ("unlit", "lit")
+TURNTABLE_ELEVATION_DEG = 20.0
+LIT_SUN, LIT_AMBIENT = 200000.0, 60000.0      # Filament lux; chosen by eye on the sample scene
 FOV_DEG = 30.0
 SUPERSAMPLE = 2
 SEPARATOR_PX = 2
@@ -61,7 +67,7 @@ _BASE_COLOR = 1.055 * 2.0 ** (1.0 / 2.4) - 0.055
 
 
 def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=256, views=DEFAULT_VIEWS,
-            background=(255, 255, 255), vertex_colors=None, isolate=True, timeout_s=120.0):
+            background=(255, 255, 255), lighting="unlit", vertex_colors=None, isolate=True, timeout_s=120.0):
     """Render the textured mesh from fixed cameras into one image.
 
     Parameters
@@ -78,8 +84,13 @@ def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=25
         Also write the PNG here (atomically).
     size_px : int
         Side of each square view (32 to 2048).
-    views : sequence of names from :data:`VIEWS`
+    views : sequence of names from :data:`VIEWS`, or "turntable:N"
+        "turntable:N": N views around the vertical axis (y up) at :data:`TURNTABLE_ELEVATION_DEG`,
+        starting from the front, as one strip.
     background : RGB triple, 0..255
+    lighting : {"unlit", "lit"}
+        "unlit" (default): the texture's own colours (what the goldens compare). "lit": shaded by a sun
+        light over the camera's shoulder plus ambient light, to see the shape.
     vertex_colors : (n,3) float array in [0,1], optional
         Multiplied with the texture, as glTF viewers do with ``COLOR_0`` (to see what a file that
         carries both looks like). Default: the texture alone.
@@ -95,14 +106,13 @@ def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=25
     V, F, corner_uv, image = _inputs(source, F, corner_uv, image)
     if isinstance(size_px, bool) or not isinstance(size_px, (int, np.integer)) or not 32 <= size_px <= 2048:
         raise InputError(f"size_px={size_px!r} must be a whole number of pixels from 32 to 2048")
-    views = tuple(views)
-    bad = [v for v in views if v not in VIEWS]
-    if not views or bad:
-        raise InputError(f"views {bad or views!r} not known; use names from {sorted(VIEWS)}")
+    directions = view_directions(views)
+    if lighting not in LIGHTING:
+        raise InputError(f"lighting={lighting!r} is not one of {', '.join(LIGHTING)}")
     bg = np.asarray(background)
     if bg.shape != (3,) or np.any(bg < 0) or np.any(bg > 255):
         raise InputError(f"background={background!r} must be an RGB triple of values 0..255")
-    params = dict(size_px=int(size_px), views=list(views), background=[int(b) for b in bg])
+    params = dict(size_px=int(size_px), views=directions, background=[int(b) for b in bg], lighting=lighting)
     if vertex_colors is not None:
         vertex_colors = np.asarray(vertex_colors, np.float64)
         if vertex_colors.ndim != 2 or vertex_colors.shape[0] != len(V) or vertex_colors.shape[1] < 3:
@@ -154,15 +164,38 @@ def save_png(path, img):
     return _save_png(path, np.asarray(img, dtype=np.uint8))
 
 
+def view_directions(views):
+    """[[direction, up], ...] (JSON-ready lists) of view names, or of "turntable:N"."""
+    if isinstance(views, str):
+        views = (views,)
+    views = tuple(views)
+    if len(views) == 1 and str(views[0]).startswith("turntable:"):
+        n = str(views[0]).split(":", 1)[1]
+        if not n.isdigit() or not 1 <= int(n) <= 36:
+            raise InputError(f"views {views[0]!r}: say turntable:N with N from 1 to 36")
+        az = np.radians(360.0 * np.arange(int(n)) / int(n))
+        el = np.radians(TURNTABLE_ELEVATION_DEG)
+        return [[[float(np.sin(a) * np.cos(el)), float(np.sin(el)), float(np.cos(a) * np.cos(el))], [0.0, 1.0, 0.0]]
+                for a in az]
+    bad = [v for v in views if v not in VIEWS]
+    if not views or bad:
+        raise InputError(f"views {bad or views!r} not known; use names from {sorted(VIEWS)} or turntable:N")
+    return [[list(VIEWS[v][0]), list(VIEWS[v][1])] for v in views]
+
+
 def cameras(V, views=DEFAULT_VIEWS):
-    """(centre, [(eye, up), ...]) of the fixed cameras: the bounding sphere fills the view."""
+    """(centre, [(eye, up), ...]) of the cameras: the bounding sphere fills the view.
+
+    ``views``: names from :data:`VIEWS`, "turntable:N", or [direction, up] pairs."""
+    if isinstance(views, str) or (len(views) and isinstance(views[0], str)):
+        views = view_directions(views)
     lo, hi = V.min(axis=0), V.max(axis=0)
     centre = (lo + hi) / 2.0
     radius = float(np.linalg.norm(V - centre, axis=1).max()) or 1.0
     dist = radius / np.sin(np.radians(FOV_DEG / 2.0)) * 1.02
     out = []
-    for name in views:
-        d, up = (np.asarray(x, np.float64) for x in VIEWS[name])
+    for d, up in views:
+        d, up = np.asarray(d, np.float64), np.asarray(up, np.float64)
         out.append((centre + dist * d / np.linalg.norm(d), up))
     return centre, out
 
@@ -173,7 +206,7 @@ def _linear_to_srgb_u8(img):
     return np.clip(np.rint(y * 255.0), 0, 255).astype(np.uint8)
 
 
-def render_views(V, F, corner_uv, image, *, size_px, views, background, vertex_colors=None):
+def render_views(V, F, corner_uv, image, *, size_px, views, background, lighting="unlit", vertex_colors=None):
     """Render in this process (Open3D must be importable and able to start its engine)."""
     import open3d as o3d
 
@@ -195,15 +228,28 @@ def render_views(V, F, corner_uv, image, *, size_px, views, background, vertex_c
     tex = o3d.geometry.Image(_linear_to_srgb_u8(image))
     mesh.textures = [tex]
     mat = R.MaterialRecord()
-    mat.shader = "defaultUnlit"
     mat.albedo_img = tex
-    mat.base_color = [_BASE_COLOR, _BASE_COLOR, _BASE_COLOR, 1.0]
+    if lighting == "lit":
+        mesh.compute_vertex_normals()
+        mat.shader = "defaultLit"
+        mat.base_color = [1.0, 1.0, 1.0, 1.0]
+        mat.base_roughness = 0.9
+        mat.base_metallic = 0.0
+        scene.scene.set_indirect_light_intensity(LIT_AMBIENT)
+    else:
+        mat.shader = "defaultUnlit"
+        mat.base_color = [_BASE_COLOR, _BASE_COLOR, _BASE_COLOR, 1.0]
     scene.add_geometry("mesh", mesh, mat)
     centre, cams = cameras(V, views)
     bg = np.asarray(background, np.uint8)
     tiles = []
     for eye, up in cams:
         renderer.setup_camera(FOV_DEG, centre.astype(np.float32), eye.astype(np.float32), up.astype(np.float32))
+        if lighting == "lit":         # the sun over the camera's shoulder (upper left), towards the centre
+            side = np.cross(up, centre - eye)
+            sun = (centre - eye) / np.linalg.norm(centre - eye) - 0.5 * up + 0.5 * side / (np.linalg.norm(side) or 1)
+            scene.scene.set_sun_light((sun / np.linalg.norm(sun)).astype(np.float32), [1.0, 1.0, 1.0], LIT_SUN)
+            scene.scene.enable_sun_light(True)
         img = np.asarray(renderer.render_to_image())[:, :, :3]
         for _ in range(3):                         # the engine may present a frame before the upload
             if np.any(img != bg):

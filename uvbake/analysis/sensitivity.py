@@ -156,8 +156,8 @@ class SweepResult:
         matplotlib.use("Agg", force=False)
         from matplotlib.figure import Figure
 
-        fig = Figure(figsize=(16, 4.6), layout="constrained")
-        ax1, ax2, ax3, ax4 = fig.subplots(1, 4)
+        fig = Figure(figsize=(11, 8), layout="constrained")          # 2 x 2: readable at README width
+        (ax1, ax2), (ax4, ax3) = fig.subplots(2, 2)
         cmap = matplotlib.colormaps["viridis"]
         alphas = self.alphas
         span = (alphas.max() - alphas.min()) or 1.0
@@ -198,9 +198,11 @@ class SweepResult:
         ax4.plot(alphas, d_area + d_angle, "k.--", label="combined")
         if self.recommendation:
             ax4.axvline(self.recommendation["alpha"], color="C3", lw=1.0, label="recommended")
-        ax4.set_xlabel("alpha")
-        ax4.set_title("distortion (each relative to its largest)")
+        ax4.set_xlabel("alpha (weight of area)")
+        ax4.set_title("distortion (each relative to its largest): larger alpha keeps areas, bends angles")
         ax4.legend(fontsize="small")
+        for ax in (ax2, ax3, ax4):
+            ax.grid(True, color="0.9", lw=0.6)
         if title:
             fig.suptitle(title)
         import io
