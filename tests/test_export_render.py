@@ -8,10 +8,11 @@ alone unless ``keep_vertex_colors=True``; the second test shows the comparison c
 
 import numpy as np
 import pytest
-from conftest import SAMPLE_SCENES
 
 from pytest_uvbake.compare import compare_images
 from pytest_uvbake.plugin import DEFAULT_MAD_TOL, DEFAULT_SSIM_MIN
+
+from conftest import SAMPLE_SCENES
 
 SIZE, VIEW = 256, 128
 

@@ -4,6 +4,7 @@ geometry the atlas image draws (seams are exactly the chart-boundary edges)."""
 
 import numpy as np
 import pytest
+
 from conftest import SAMPLE_SCENES
 
 SIZE = 256

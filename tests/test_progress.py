@@ -5,6 +5,7 @@ import re
 
 from uvbake.cli.progress import Progress
 
+
 class _Terminal(io.StringIO):
     def isatty(self):                     # tqdm draws only on a terminal
         return True

@@ -4,6 +4,7 @@ import json
 from importlib import resources
 
 import pytest
+
 from conftest import SAMPLE_SCENES
 
 jsonschema = pytest.importorskip("jsonschema")
@@ -62,3 +63,16 @@ def test_version_exits_0(capsys):
         status = exc.code
     assert status == 0
     assert capsys.readouterr().out.strip() == f"uvbake {__version__}"
+
+
+def test_every_option_has_help():
+    import argparse
+
+    from uvbake.cli import parser
+
+    top = parser()
+    sub = next(a for a in top._actions if isinstance(a, argparse._SubParsersAction))
+    missing = [f"uvbake {name} {'/'.join(a.option_strings) or a.dest}"
+               for name, p in sub.choices.items() for a in p._actions
+               if not isinstance(a, argparse._HelpAction) and not (a.help or "").strip()]
+    assert missing == []

@@ -24,6 +24,9 @@ COMMANDS = {
     "batch": (batch, "many meshes on Dask, resumable"),
 }
 DEFAULT_COMMAND = "unwrap"
+#: the usage line of `uvbake --help`: the default command and the subcommands
+USAGE = ("uvbake [-h] [--version] MESH [options]   (unwrap; options below)\n"
+         "       uvbake {unwrap,check,sweep,batch} ...   (see uvbake COMMAND --help)")
 
 
 def parser() -> ArgumentParser:
@@ -34,7 +37,9 @@ def parser() -> ArgumentParser:
     for name, (module, summary) in COMMANDS.items():
         # `uvbake MESH` is `uvbake unwrap MESH`: its help and errors read as the command itself
         prog = "uvbake" if name == DEFAULT_COMMAND else f"uvbake {name}"
+        usage = USAGE if name == DEFAULT_COMMAND else None
         sp = sub.add_parser(name, prog=prog, help=summary, description=getattr(module, "DESCRIPTION", None),
+                            usage=usage,
                             epilog=getattr(module, "EPILOG", None),
                             formatter_class=argparse.RawDescriptionHelpFormatter,
                             exit_on_usage_error=name == "batch")

@@ -49,8 +49,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--no-auto-cut", action="store_true", help="refuse closed charts and charts with handles")
     g.add_argument("--no-repair", action="store_true", help="refuse non-manifold input")
     g.add_argument("--paper", action="store_true", help="the paper's formulation: no splitting, no continuation")
-    g.add_argument("--texture-size", type=int, default=UNWRAP_DEFAULTS["texture_size_px"], metavar="PX")
-    g.add_argument("--gutter", type=int, default=UNWRAP_DEFAULTS["gutter_px"], metavar="PX")
+    g.add_argument("--texture-size", type=int, default=UNWRAP_DEFAULTS["texture_size_px"], metavar="PX",
+                   help=f"texture side in texels (default {UNWRAP_DEFAULTS['texture_size_px']})")
+    g.add_argument("--gutter", type=int, default=UNWRAP_DEFAULTS["gutter_px"], metavar="PX",
+                   help=f"gap between charts in texels (default {UNWRAP_DEFAULTS['gutter_px']})")
     g.add_argument("--bake", default="checker", choices=["checker", "vertex-colors", "none"],
                    help="texture to bake into every atlas (default checker)")
     g = p.add_argument_group("outputs")

@@ -21,6 +21,8 @@ from uvbake.cli.common import EXIT_FAILED, EXIT_OK, ArgumentParser
 from uvbake.cli.common import run as run_command
 from uvbake.errors import InputError
 from uvbake.io.atomic import atomic_write_bytes
+from uvbake.io.export import save_png
+from uvbake.pictures import legend_lines, with_legend
 from uvbake.validate.candidates import _row_ids
 from uvbake.validate.core import validate
 
@@ -37,7 +39,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "path",
         help="mesh with texture coordinates: .obj (vt), .glb/.gltf (TEXCOORD_0), .ply (s,t or u,v)",
     )
-    p.add_argument("--image", metavar="PNG", help="write the overlap image here")
+    p.add_argument("--image", metavar="PNG", help="write the overlap image here: charts in colour, overlaps "
+                   "red, flipped triangles blue, v up, with a legend strip below")
     p.add_argument("--json", metavar="JSON", help="write the full report here")
     p.add_argument(
         "--resolution", metavar="N", type=int, default=2048, help="raster side in pixels (default 2048)"
@@ -110,8 +113,8 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"folder of {out} does not exist; create it or choose another path")
     # per-corner UVs make it an atlas (raster on [0,1]^2 when the UVs lie there); F keeps the welding
     report = validate(uv[F], F, resolution_px=args.resolution, allow_subpixel=args.allow_subpixel)
-    if args.image:
-        report.save_image(args.image)
+    if args.image:   # the overlap picture with a legend strip below it (what was found, in words)
+        save_png(args.image, with_legend(report.overlap_image(), legend_lines(report.to_dict())))
     if args.json:
         doc = {"path": os.fspath(args.path), **report.to_dict()}
         atomic_write_bytes(args.json, (json.dumps(doc, indent=1) + "\n").encode())

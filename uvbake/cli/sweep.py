@@ -30,15 +30,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("mesh", help="mesh file (PLY, OBJ, OFF, GLB, STL); charts from face labels and connectivity")
     p.add_argument("--alphas", default="0:1:0.1",
                    help="start:stop:step (stop included) or a comma list, values in [0, 1] (default 0:1:0.1)")
-    p.add_argument("--init", default=DEFAULTS.init, choices=INITS)
-    p.add_argument("--backend", default=DEFAULTS.backend, choices=BACKENDS)
+    p.add_argument("--init", default=DEFAULTS.init, choices=INITS,
+                   help=f"start map of every chart (default {DEFAULTS.init})")
+    p.add_argument("--backend", default=DEFAULTS.backend, choices=BACKENDS,
+                   help="lm: Levenberg-Marquardt (default); lbfgs: nlopt L-BFGS")
     p.add_argument("--warm-start", action="store_true",
                    help="start each alpha from the previous alpha's solution (reported per alpha)")
-    p.add_argument("--tol", type=float, default=DEFAULTS.tol)
-    p.add_argument("--max-iter", type=int, default=DEFAULTS.max_iter)
-    p.add_argument("--seed", type=int, default=DEFAULTS.seed)
+    p.add_argument("--tol", type=float, default=DEFAULTS.tol,
+                   help=f"scale-free gradient norm to reach (default {DEFAULTS.tol:g})")
+    p.add_argument("--max-iter", type=int, default=DEFAULTS.max_iter,
+                   help=f"iteration cap per chart and alpha (default {DEFAULTS.max_iter})")
+    p.add_argument("--seed", type=int, default=DEFAULTS.seed, help=f"seed of --init random (default {DEFAULTS.seed})")
     p.add_argument("--no-overlaps", action="store_true", help="skip the overlap count (faster)")
-    p.add_argument("--plot", metavar="PNG", help="write the convergence and sensitivity plot here")
+    p.add_argument("--plot", metavar="PNG", help="write the plot here: F per iteration, F*(alpha), area and angle "
+                                                 "distortion against alpha, sensitivity")
     p.add_argument("--csv", metavar="CSV", help="write the numbers as CSV")
     p.add_argument("--json", metavar="JSON", help="write the numbers (and histories) as JSON")
     p.add_argument("--recommend", action="store_true",

@@ -19,12 +19,14 @@ from typing import Any
 from uvbake.analysis.crosscheck import cross_check_charts
 from uvbake.atlas.pipeline import check_texture, unwrap
 from uvbake.atlas.shapepack import mip_gutter_px
+from uvbake.cli.progress import Progress
 from uvbake.errors import InputError
 from uvbake.flatten.options import BACKENDS, DEFAULTS
 from uvbake.flatten.starts import INITS
 from uvbake.io.atomic import atomic_write
 from uvbake.io.export import save_png
-from uvbake.render import preview
+from uvbake.pictures import atlas_image
+from uvbake.render import LIGHTING, preview, view_directions
 
 DESCRIPTION = (
     "Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle\n"
@@ -47,6 +49,10 @@ EPILOG = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of ``uvbake [unwrap] MESH ...``."""
+    from uvbake import __version__
+
+    p.add_argument("--version", action="version", version=f"uvbake {__version__}",
+                   help="print the version and exit")
     p.add_argument("mesh", help="input mesh (PLY, OBJ, OFF, GLB/GLTF, STL)")
     p.add_argument("-o", "--output", help="textured mesh to write, .obj (with .mtl and .png) or .glb "
                                           "(default: MESH_uv.obj next to the input)")
@@ -96,8 +102,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--bake", metavar="PNG", help="bake a texture to this PNG: a checkerboard, or the vertex "
                                                  "colours when the name contains 'color'/'colour'")
     g.add_argument("--bake-mode", choices=["checker", "vertex-colors"], help="what --bake bakes (overrides the name)")
-    g.add_argument("--preview", metavar="PNG", help="render the textured mesh from the front, the back and an angle "
-                                                    "into this PNG (Open3D offscreen, headless)")
+    g.add_argument("--keep-vertex-colors", action="store_true",
+                   help="also write the vertex colours into the mesh file (viewers multiply them with the "
+                        "texture, so a colour bake shows its colours twice); default: the texture alone")
+    g = p.add_argument_group("pictures")
+    g.add_argument("--preview", metavar="PNG", help="render the textured mesh (the checker when nothing is baked) "
+                                                    "into this PNG, views side by side (Open3D offscreen, headless)")
+    g.add_argument("--preview-size", type=int, default=256, metavar="PX",
+                   help="side of each preview view in pixels, 32 to 2048 (default 256)")
+    g.add_argument("--preview-views", default="front,back,angle", metavar="VIEWS",
+                   help="comma-separated views from front, back, angle, or turntable:N for N views around "
+                        "the vertical axis (default front,back,angle)")
+    g.add_argument("--preview-lighting", choices=LIGHTING, default="unlit",
+                   help="unlit: the texture's own colours (default); lit: shaded by a sun light, to see the shape")
+    g.add_argument("--atlas-image", metavar="PNG",
+                   help="draw the atlas into this PNG: charts in colour, seams as lines, and a legend with the "
+                        "chart count, packing and worst distortion")
+    g.add_argument("--atlas-image-size", type=int, default=512, metavar="PX",
+                   help="side of the atlas picture in pixels, 16 to 4096 (default 512)")
     p.add_argument("--json", metavar="REPORT", help="write the JSON report here")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
 
@@ -122,6 +144,7 @@ class _Outputs:
     bake: Path | None
     bake_mode: str | None
     preview: Path | None
+    atlas: Path | None
 
 
 def _bake_output(args: argparse.Namespace) -> tuple[Path | None, str | None]:
@@ -161,56 +184,62 @@ def _outputs(args: argparse.Namespace) -> _Outputs:
         raise InputError(f"output {out} must end in .obj or .glb")
     report_path = output_path(args.mesh, args.json, suffix="_report", ext=".json") if args.json else None
     bake_path, mode = _bake_output(args)
-    preview_path = output_path(args.mesh, args.preview, suffix="_preview", ext=".png") if args.preview else None
+    preview_path, atlas_path = _picture_outputs(args)
     outputs = [out] + ([out.with_suffix(".mtl"), out.with_suffix(".png")] if out.suffix.lower() == ".obj" else [])
-    outputs += [p for p in (report_path, bake_path, preview_path) if p is not None]
+    outputs += [p for p in (report_path, bake_path, preview_path, atlas_path) if p is not None]
     if len({p.resolve() for p in outputs}) < len(outputs):
         raise InputError(f"two outputs share one path ({', '.join(str(p) for p in outputs)}); "
                          "give -o, --json and --bake different names")
     if Path(args.mesh).exists() and Path(args.mesh).resolve() in {p.resolve() for p in outputs}:
         raise InputError(f"an output would replace the input {args.mesh}; choose other output names")
-    return _Outputs(out, report_path, bake_path, mode, preview_path)
+    return _Outputs(out, report_path, bake_path, mode, preview_path, atlas_path)
+
+
+def _picture_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None]:
+    """--preview and --atlas-image paths and options, checked before the solve."""
+    preview_path = output_path(args.mesh, args.preview, suffix="_preview", ext=".png") if args.preview else None
+    atlas_path = output_path(args.mesh, args.atlas_image, suffix="_atlas", ext=".png") if args.atlas_image else None
+    for flag, path in (("--preview", preview_path), ("--atlas-image", atlas_path)):
+        if path is not None and path.suffix.lower() != ".png":
+            raise InputError(f"{flag} {path} must end in .png")
+    if preview_path is not None:
+        view_directions([v.strip() for v in args.preview_views.split(",")])
+        if not 32 <= args.preview_size <= 2048:
+            raise InputError(f"--preview-size {args.preview_size} must be from 32 to 2048 pixels")
+    if atlas_path is not None and not 16 <= args.atlas_image_size <= 4096:
+        raise InputError(f"--atlas-image-size {args.atlas_image_size} must be from 16 to 4096 pixels")
+    return preview_path, atlas_path
 
 
 def _solve(args: argparse.Namespace, mode: str | None) -> Any:
-    bar = _progress(quiet=args.quiet)
-
-    def on_stage(stage: str, done: int, total: int) -> None:
-        if bar is not None:
-            bar.set_description_str(f"uvbake {stage}", refresh=False)
-            if stage == "solve":
-                bar.total = total
-                bar.n = done
-            bar.refresh()
-
-    def on_iteration(info: dict[str, Any]) -> None:
-        if bar is not None:
-            bar.set_postfix_str(f"iter {info['iteration']} |grad| {info['grad_norm']:.1e}", refresh=False)
-
+    bar = Progress(quiet=args.quiet)
     result = unwrap(args.mesh, alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol,
                     max_iter=args.max_iter, seed=args.seed, texture_size_px=args.texture_size,
                     gutter_px=args.gutter, texel_density=args.texel_density, mip_levels=args.mip_levels,
                     bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
                     guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
                     max_stretch=args.max_stretch, max_charts=args.max_charts, weld=True if args.weld else None,
-                    progress=on_stage, callback=on_iteration)
+                    progress=bar.stage, callback=bar.iteration)
     if args.cross_check:
         result.report["cross_check"] = cross_check_charts(result.charts, result.results, alpha=args.alpha,
                                                           init=args.init, tol=args.tol, max_iter=args.max_iter,
                                                           seed=args.seed, raise_on_disagree=False)
-    if bar is not None:
-        bar.close()
+    bar.close()
     return result
 
 
-def _write(result: Any, paths: _Outputs, t0: float) -> list[Path]:
-    written = list(result.save(paths.mesh))
+def _write(result: Any, paths: _Outputs, args: argparse.Namespace, t0: float) -> list[Path]:
+    written = list(result.save(paths.mesh, keep_vertex_colors=args.keep_vertex_colors))
     if paths.bake is not None:
         save_png(paths.bake, result.image)
         written.append(paths.bake)
     if paths.preview is not None:
-        preview(result, path=paths.preview)
+        preview(result, path=paths.preview, size_px=args.preview_size, lighting=args.preview_lighting,
+                views=[v.strip() for v in args.preview_views.split(",")])
         written.append(paths.preview)
+    if paths.atlas is not None:
+        save_png(paths.atlas, atlas_image(result, size_px=args.atlas_image_size))
+        written.append(paths.atlas)
     result.report["outputs"] = [str(p) for p in written] + ([str(paths.report)] if paths.report else [])
     result.report["timings"]["cli_total_s"] = time.perf_counter() - t0
     if paths.report is not None:
@@ -252,7 +281,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     paths = _outputs(args)
     result = _solve(args, paths.bake_mode)
-    written = _write(result, paths, t0)
+    written = _write(result, paths, args, t0)
     rep = result.report
     if not args.quiet:
         _summary(rep, args.alpha, written)
@@ -264,13 +293,3 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 1
     return 0
-
-
-def _progress(*, quiet: bool) -> Any:
-    if quiet:
-        return None
-    from tqdm import tqdm
-
-    # disable=None: shown on a terminal, silent when stderr is a pipe or a CI log
-    return tqdm(total=1, unit="chart", desc="uvbake", disable=None, leave=False, file=sys.stderr)
-
