@@ -143,13 +143,15 @@ def test_compute_uvatlas_keywords():
     from uvbake.errors import InputError
 
     mesh = o3d.t.io.read_triangle_mesh(str(SAMPLE_SCENES / "disk_holes.ply"))
-    with pytest.warns(UserWarning, match="max_stretch=0.2 has no effect"):
+    with pytest.warns(UserWarning, match="max_stretch=0.2 has no effect.*distortion_budget"):
         out, result = uvbake_open3d.unwrap(mesh, size=64, gutter=1.5, max_stretch=0.2, parallel_partitions=2,
                                            nthreads=1, bake=None, return_result=True)
     atlas = result.report["atlas"]
     assert atlas["texture_size_px"] == 64 and atlas["gutter_px"] == 2        # 1.5 px rounded up
     assert result.report["options"]["max_stretch_open3d"] == 0.2
     assert out.material.texture_maps["albedo"].rows == 64
+    _, budget = uvbake_open3d.unwrap(mesh, size=64, distortion_budget=2.5, bake=None, return_result=True)
+    assert budget.report["options"]["max_stretch"] == 2.5                  # uvbake's own budget, forwarded
     for bad, match in ((dict(size=64.5), "size"), (dict(gutter=-1), "gutter"), (dict(max_stretch=2), "max_stretch"),
                        (dict(size=64, texture_size_px=128), "disagree"), (dict(nthreads=-1), "nthreads")):
         with pytest.raises(InputError, match=match):

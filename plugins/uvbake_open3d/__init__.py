@@ -31,7 +31,7 @@ __all__ = ["unwrap", "to_open3d"]
 
 
 def unwrap(mesh, *, size=None, gutter=None, max_stretch=None, parallel_partitions=None, nthreads=None,
-           face_labels=None, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", return_result=False,
+           face_labels=None, distortion_budget=None, alpha=0.5, texture_size_px=1024, gutter_px=4, bake="auto", return_result=False,
            **options):
     """Unwrap an Open3D triangle mesh (tensor or legacy) and return the same kind, textured.
 
@@ -47,10 +47,12 @@ def unwrap(mesh, *, size=None, gutter=None, max_stretch=None, parallel_partition
     gutter : float, optional
         compute_uvatlas's space around the charts in pixels: ``gutter_px``, rounded up to whole texels.
     max_stretch : float in [0, 1], optional
-        compute_uvatlas's stretch bound (0: none allowed, 1: any). uvbake's charting has no stretch
-        bound on this version, so the value is checked, recorded in the report's ``options`` and has no
-        effect; a ``UserWarning`` says so. Charts come from the face labels, connected components,
-        the automatic cut to disks and the flip/overlap guarantee.
+        compute_uvatlas's stretch bound (0: none allowed, 1: any), UVAtlas's normalised stretch. uvbake's
+        budget measures something else (an area factor), so the value is checked, recorded in the
+        report's ``options`` and not used; a ``UserWarning`` says so and names ``distortion_budget``.
+    distortion_budget : float > 1, optional
+        uvbake's own distortion budget (``max_stretch`` of :func:`uvbake.atlas.pipeline.unwrap`: every
+        triangle's area factor at least 1/budget of its chart's; default 4).
     parallel_partitions, nthreads : int, optional
         compute_uvatlas's threading: ``nthreads`` is ``workers`` (charts solved in parallel; 0 = all
         cores); ``parallel_partitions`` is accepted and has no effect (uvbake solves whole charts).
@@ -88,6 +90,8 @@ def unwrap(mesh, *, size=None, gutter=None, max_stretch=None, parallel_partition
         options.setdefault("workers", int(nthreads) or None)
     if max_stretch is not None:
         _stretch_unused(max_stretch)
+    if distortion_budget is not None:
+        options["max_stretch"] = distortion_budget
     if face_labels is not None and not isinstance(face_labels, np.ndarray) and _is_path(face_labels):
         face_labels = _labels_from_file(face_labels, mesh, tensor)
     if bake == "auto":
@@ -142,10 +146,9 @@ def _stretch_unused(max_stretch):
     if isinstance(max_stretch, bool) or not isinstance(max_stretch, (int, float, np.integer, np.floating)) \
             or not 0.0 <= max_stretch <= 1.0:
         raise InputError(f"max_stretch={max_stretch!r} must be in [0, 1] as for compute_uvatlas")
-    warnings.warn(f"uvbake_open3d.unwrap: max_stretch={max_stretch} has no effect: uvbake's charts come from "
-                  "face labels, connected components, the cut to disks and the flip/overlap guarantee, not "
-                  "from a stretch bound; drop max_stretch, or pass face_labels to choose the charts",
-                  UserWarning, stacklevel=3)
+    warnings.warn(f"uvbake_open3d.unwrap: max_stretch={max_stretch} has no effect: it is UVAtlas's normalised "
+                  "stretch, which uvbake does not measure; uvbake's own budget is distortion_budget= (an area "
+                  "factor > 1, default 4), and face_labels= chooses the charts", UserWarning, stacklevel=3)
 
 
 def _is_path(x):
