@@ -199,7 +199,7 @@ class SweepResult:
         if self.recommendation:
             ax4.axvline(self.recommendation["alpha"], color="C3", lw=1.0, label="recommended")
         ax4.set_xlabel("alpha (weight of area)")
-        ax4.set_title("distortion (each relative to its largest): larger alpha keeps areas, bends angles")
+        ax4.set_title("area vs angle distortion (each / its largest)")
         ax4.legend(fontsize="small")
         for ax in (ax2, ax3, ax4):
             ax.grid(True, color="0.9", lw=0.6)
