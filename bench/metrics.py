@@ -13,6 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from uvbake.analysis.metrics import (  # noqa: E402,F401
     MapMetrics,
+    area_below,
     chart_ids,
     corners,
     cut_edges,
@@ -22,6 +23,8 @@ from uvbake.analysis.metrics import (  # noqa: E402,F401
     packing_efficiency,
     signed_areas,
     singular_values,
+    texel_share,
+    texel_summary,
     uv_seam_length,
     weighted_median,
 )

@@ -1,44 +1,53 @@
-"""uvbake side by side with its peers: quality and speed on the same meshes, machine and run.
+"""uvbake's atlases beside the tools users pick today, on every shared mesh and sample scene, in one run.
 
-    python bench/peers.py                      # everything (about 5 minutes on 2 cores)
-    python bench/peers.py --quick              # small meshes only, no UVAtlas (about 20 s)
-    python bench/peers.py --meshes camelhead --methods uvbake-0.1 lscm uvatlas
+    python bench/peers.py                                   # everything (about 10-15 minutes on 2 cores)
+    python bench/peers.py --meshes camelhead cow --methods uvbake xatlas --alphas 0.1 0.5
+    python bench/peers.py --out /tmp/peers --name peers_before
 
-Writes ``bench/results/peers.md`` (the peers table and the Table 4 verdicts), ``peers.json`` (every
-number) and ``peers.png``. Peers come from the optional ``bench`` extra (``pip install -e .[bench]``):
-libigl (LSCM, ARAP, SLIM), xatlas; Open3D (UVAtlas) is a runtime dependency already. A missing peer
-is reported as skipped, never an error.
+Writes ``<out>/<name>.md`` (the table) and ``<name>.json`` (every number); default
+``bench/results/peers``. Every method runs in a fresh process, one at a time, so the parent measures
+that process's whole CPU time (``resource.getrusage(RUSAGE_CHILDREN)`` before and after; user +
+system, all threads) besides the CPU of the unwrap call alone (``time.process_time`` inside it):
 
-Methods
--------
-- ``uvbake-0.1``, ``uvbake-0.5``: ``uvbake.parameterize(V, F, alpha=..., init="lscm")`` per chart; time
-  is the whole call (LSCM start included).
-- ``lscm``: ``igl.lscm`` with the two farthest boundary vertices pinned at their 3D distance.
-- ``arap``: ``igl.arap_precomputation`` / ``igl.arap_solve`` (2D elements energy), 100 local/global
-  iterations from the LSCM map, one vertex pinned, ``with_dynamics=False`` (the dynamics option
-  misbehaves on meshes with large coordinates). Time includes the LSCM start.
-- ``slim``: ``igl.slim_precompute`` + 20 ``igl.slim_solve`` iterations of the symmetric Dirichlet energy
-  from the LSCM map (SLIM needs a flip-free start: where LSCM flips, SLIM's result is not meaningful and
-  the table says so), no constraints. Time includes the LSCM start.
-- ``xatlas``: ``xatlas.Atlas`` with default chart and pack options on the whole mesh (it cuts its own
-  charts and packs them). Its UVs are normalised by atlas width and height separately, so u is
-  multiplied by the width and v by the height (texels) before measuring.
-- ``uvatlas``: Open3D's ``TriangleMesh.compute_uvatlas()`` (size 512, gutter 1, max stretch 1/6) on the
-  whole mesh; it cuts and packs.
+- ``uvbake-A``: unwrap CPU of ``uvbake.unwrap(path, alpha=A)`` without a bake (load and repair
+  included, as the Python API does them); whole CPU of the command
+  ``uvbake MESH --alpha A --bake checker.png`` (1024 px checker, OBJ + MTL + PNG + JSON report
+  written). The quality columns measure the in-process result (on the repaired mesh).
+- ``xatlas``: ``xatlas.Atlas`` + ``generate()`` with defaults (what ``xatlas.parametrize`` runs);
+  whole CPU: the worker process (imports, reading the mesh, the unwrap, writing the UVs).
+- ``blender``: Smart UV Project then ``pack_islands`` through pip ``bpy`` in its own venv
+  (``bench/blender_smart_project.py``; venv python from ``--bpy-python`` or ``$UVBAKE_BPY_PYTHON``,
+  default ``/work/venvs/bpy/bin/python``). Unwrap CPU: the two operators (with edit mode), excluding
+  ``import bpy`` and building the mesh; whole CPU: the process.
+- ``uvatlas``: Open3D's ``compute_uvatlas()`` with defaults; whole CPU as for xatlas.
 
-Per-chart methods run on each input chart (labelled scenes: the labelled charts; research meshes: the
-mesh itself), so their seams are the chart borders; they do not pack. Overlaps of per-chart methods
-are counted within charts (their charts are not laid out together); for packers over the whole atlas.
-Metric definitions are in ``bench/metrics.py``.
+Peers get the mesh exactly as loaded (``uvbake.io.load.load_mesh``, no repair), closed meshes included. A
+missing peer is reported as skipped, a crash or a timeout as failed; the run goes on.
+
+Columns (definitions in the metrics module; UVs measured in texel units of the method's own atlas
+rectangle, so xatlas's per-axis normalisation is undone):
+
+- charts: components of faces joined through uncut edges; seam: 3D length of cut interior edges.
+- flipped, overlap pairs: ``uvbake.validate`` on the per-corner UVs (whole atlas).
+- min share, < 1/4, < 1/16: the least texel share and the fraction of the surface area below 1/4
+  and 1/16 of its fair share.
+- angle: area-weighted mean sigma1/sigma2; area: area-weighted mean |log(area ratio)| after the best
+  global scale (collapsed triangles left out of both and counted among the flipped).
+- packing: sum of |UV triangle areas| / atlas rectangle area (chart texels / atlas texels, the
+  definition of ``PackResult.efficiency``; meaningful only without overlaps).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import platform
+import resource
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -52,420 +61,262 @@ ROOT = HERE.parent
 MESHES = ROOT.parent / "shared" / "meshes"
 SCENES = ROOT / "sample_scenes"
 RESULTS = HERE / "results"
+METHODS = ["uvbake", "xatlas", "blender", "uvatlas"]
+DEFAULT_BPY = "/work/venvs/bpy/bin/python"
+TEXTURE_PX = 1024
+GUTTER_PX = 4
 
-RESEARCH = ["halftunnel", "camelhead", "beetle"]
-SAMPLE = ["disk_holes", "sphere_cap", "scene", "multi_component"]
-CLOSED = ["bumpy", "cow", "fandisk"]          # Table 4 only, opened by removing one vertex's faces
-METHODS = ["uvbake-0.1", "uvbake-0.5", "uvbake-atlas-0.1", "uvbake-atlas-0.5", "lscm", "arap", "slim", "xatlas", "uvatlas"]
-PER_CHART = {"uvbake-0.1", "uvbake-0.5", "lscm", "arap", "slim"}
-TABLE4_METHODS = ["uvbake-0.1", "uvbake-0.5", "uvbake-atlas-0.1", "uvbake-atlas-0.5", "lscm", "arap"]
-ARAP_ITERS = 100
-SLIM_ITERS = 20
+
+def mesh_paths():
+    """Every mesh of ../shared/meshes (when present) and every sample scene, by name."""
+    paths = sorted(MESHES.glob("*.off")) if MESHES.is_dir() else []
+    paths += sorted(SCENES.glob("*.ply"))
+    return {p.stem: p for p in paths}
+
+
+def child_env():
+    """The children import uvbake from this checkout (and its plugins) first."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), str(ROOT / "plugins")] + ([env["PYTHONPATH"]] if
+                                                                               env.get("PYTHONPATH") else []))
+    return env
+
+
+def run_child(cmd, timeout):
+    """Run a command; its process CPU seconds (user + system of it and its waited-for children)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=child_env())
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if proc.returncode != 0:
+        tail = (proc.stderr.strip().splitlines() or ["(no message)"])[-1]
+        raise RuntimeError(f"exit {proc.returncode}: {tail}")
+    return cpu, wall
+
+
+def uvbake_command():
+    """How to run the uvbake command from this checkout (``python -m uvbake`` once it has __main__)."""
+    sys.path.insert(0, str(ROOT))
+    try:
+        main = importlib.util.find_spec("uvbake.__main__") is not None
+    finally:
+        sys.path.pop(0)
+    return [sys.executable, "-m", "uvbake" if main else "uvbake.cli"]
 
 
 # --------------------------------------------------------------------------------------------------
-# cases
+# methods: each returns (V, F, corner_uv, width, height, record)
 
 
-def open_closed(V, F):
-    """A genus-0 closed mesh made a disk by removing the faces around vertex 0.
+def run_uvbake(path, inp, tmp, alpha, timeout, **_):
+    out = tmp / "uvbake.npz"
+    cpu, wall = run_child([sys.executable, str(HERE / "peer_worker.py"), "uvbake", str(inp), str(out),
+                           "--mesh", str(path), "--alpha", str(alpha)], timeout)
+    d = np.load(out)
+    rec = dict(unwrap_cpu_s=float(d["unwrap_cpu_s"]), worker_cpu_s=cpu, worker_wall_s=wall,
+               own_charts=int(d["charts"]), valid=bool(d["valid"]))
+    report = tmp / "report.json"
+    try:
+        ccpu, cwall = run_child(uvbake_command() + [str(path), "--alpha", str(alpha), "--bake",
+                                                    str(tmp / "checker.png"), "-o", str(tmp / "out.obj"),
+                                                    "--json", str(report), "-q"], timeout)
+        r = json.loads(report.read_text())
+        rec.update(whole_cpu_s=ccpu, whole_wall_s=cwall, command_charts=int(r["charts_final"]),
+                   command_bake_wall_s=float(r["timings"].get("bake_s", float("nan"))))
+    except (RuntimeError, subprocess.TimeoutExpired) as exc:
+        rec.update(whole_cpu_s=None, command_error=str(exc))
+    return d["V"], d["F"], d["corner_uv"], 1, 1, rec
 
-    Removes the faces incident to vertex 0 and drops that vertex: one boundary loop (its link).
-    """
-    keep = ~np.any(F == 0, axis=1)
-    F = F[keep]
-    used = np.unique(F)
-    remap = np.full(len(V), -1)
-    remap[used] = np.arange(len(used))
-    return V[used], remap[F]
 
-
-def load_case(name):
-    """(V, F, charts) of a case; charts are uvbake Chart records (one for a single-chart mesh)."""
-    import uvbake
-    from uvbake.io.load import load_mesh
-
-    if name in SAMPLE:
-        m = load_mesh(SCENES / f"{name}.ply")
-        V, F, labels = m.V, m.F, m.face_labels
+def run_peer(method, path, inp, tmp, timeout, bpy_python, **_):
+    out = tmp / f"{method}.npz"
+    if method == "blender":
+        cmd = [bpy_python, str(HERE / "blender_smart_project.py"), str(inp), str(out),
+               "--gutter-px", str(GUTTER_PX), "--texture-size", str(TEXTURE_PX)]
     else:
-        m = load_mesh(MESHES / f"{name}.off")
-        V, F, labels = m.V, m.F, None
-        if name in CLOSED:
-            V, F = open_closed(V, F)
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    return V, F, uvbake.split_charts(V, F, labels)
+        cmd = [sys.executable, str(HERE / "peer_worker.py"), method, str(inp), str(out)]
+    cpu, wall = run_child(cmd, timeout)
+    d = np.load(out)
+    rec = dict(unwrap_cpu_s=float(d["unwrap_cpu_s"]), whole_cpu_s=cpu, whole_wall_s=wall)
+    for k in ("charts", "atlases", "max_stretch", "smart_cpu_s", "pack_cpu_s", "build_cpu_s", "import_cpu_s"):
+        if k in d:
+            rec["own_charts" if k == "charts" else k] = d[k].item()
+    width, height = (int(d["width"]), int(d["height"])) if "width" in d else (1, 1)
+    return None, None, d["corner_uv"], width, height, rec
+
+
+def missing(method, bpy_python):
+    """Why a method cannot run here, or None."""
+    if method == "blender":
+        return None if Path(bpy_python).exists() else f"no bpy python at {bpy_python} (--bpy-python)"
+    mod = {"xatlas": "xatlas", "uvatlas": "open3d"}.get(method)
+    return None if mod is None or importlib.util.find_spec(mod) else f"{mod} not installed"
 
 
 # --------------------------------------------------------------------------------------------------
-# methods: per chart (return per-vertex uv of the chart) and whole mesh (return per-corner uv)
+# measuring
 
 
-def _pins(V, F):
-    from uvbake.flatten.starts import farthest_boundary_pair
-
-    p, q = farthest_boundary_pair(V, F)
-    return p, q
-
-
-def igl_lscm(V, F):
-    import igl
-
-    p, q = _pins(V, F)
-    b = np.array([p, q], dtype=np.int64)
-    bc = np.array([[0.0, 0.0], [np.linalg.norm(V[q] - V[p]), 0.0]])
-    uv, _ = igl.lscm(V, F, b, bc)
-    return uv
-
-
-def igl_arap(V, F):
-    import igl
-
-    uv0 = igl_lscm(V, F)
-    p, _ = _pins(V, F)
-    data = igl.ARAPData()
-    data.max_iter = ARAP_ITERS
-    data.with_dynamics = False
-    b = np.array([p], dtype=np.int32)
-    igl.arap_precomputation(V, F, 2, b, data)
-    return igl.arap_solve(uv0[[p]], data, uv0)
-
-
-def igl_slim(V, F, iters=SLIM_ITERS, uv0=None):
-    import igl
-
-    if uv0 is None:
-        uv0 = igl_lscm(V, F)
-    start_flipped = int(len(metrics.flipped(F, uv0)))
-    data = igl.slim_precompute(np.asfortranarray(V), np.asfortranarray(F.astype(np.int32)),
-                               np.asfortranarray(uv0), igl.MappingEnergyType.SYMMETRIC_DIRICHLET,
-                               np.zeros(0, np.int32), np.zeros((0, 2), order="F"), 0.0)
-    return np.asarray(igl.slim_solve(data, iters))[:, :2], dict(start_flipped=start_flipped)
-
-
-def uvbake_run(alpha):
-    def run(V, F):
-        import uvbake
-
-        r = uvbake.parameterize(V, F, alpha=alpha, init="lscm")
-        return r.uv, dict(iterations=r.iterations, converged=r.converged, solver_flipped=r.n_flipped)
-    return run
-
-
-def xatlas_run(V, F):
-    import xatlas
-
-    atlas = xatlas.Atlas()
-    atlas.add_mesh(V.astype(np.float32), F.astype(np.uint32))
-    atlas.generate()
-    vmap, idx, uvs = atlas[0]
-    if not np.array_equal(vmap[idx].astype(np.int64), F):
-        raise RuntimeError("xatlas reordered faces")
-    C = uvs[idx].astype(np.float64)                       # normalised by width and height separately
-    info = dict(own_charts=int(atlas.chart_count), atlases=int(atlas.atlas_count),
-                utilization=float(atlas.utilization), width=int(atlas.width), height=int(atlas.height))
-    texel = C * np.array([atlas.width, atlas.height], dtype=np.float64)
-    side = float(max(atlas.width, atlas.height))
-    return texel, info, texel / side, (atlas.width / side) * (atlas.height / side)
-
-
-def uvbake_atlas_run(alpha):
-    """The whole uvbake pipeline (what the CLI runs): splits charts until nothing flips or overlaps."""
-    def run(V, F):
-        import uvbake
-
-        res = uvbake.unwrap((V, F), alpha=alpha, texture_size_px=1024, gutter_px=4)
-        C = res.corner_uv.astype(np.float64)
-        info = dict(own_charts=int(res.report["charts_final"]), splits=len(res.report["splits"]),
-                    valid=bool(res.report["valid"]))
-        return C, info, C, 1.0
-    return run
-
-
-def uvatlas_run(V, F):
-    import open3d as o3d
-
-    m = o3d.t.geometry.TriangleMesh()
-    m.vertex.positions = o3d.core.Tensor(V.astype(np.float32))
-    m.triangle.indices = o3d.core.Tensor(F.astype(np.int32))
-    stretch, n_charts, parts = m.compute_uvatlas()
-    C = m.triangle.texture_uvs.numpy().astype(np.float64)
-    return C, dict(own_charts=int(n_charts), max_stretch=float(stretch)), C, 1.0
-
-
-PER_CHART_FN = {"uvbake-0.1": uvbake_run(0.1), "uvbake-0.5": uvbake_run(0.5), "lscm": igl_lscm,
-                "arap": igl_arap, "slim": igl_slim}
-ATLAS_FN = {"xatlas": xatlas_run, "uvatlas": uvatlas_run,
-            "uvbake-atlas-0.1": uvbake_atlas_run(0.1), "uvbake-atlas-0.5": uvbake_atlas_run(0.5)}
-NEEDS = {"lscm": "igl", "arap": "igl", "slim": "igl", "xatlas": "xatlas", "uvatlas": "open3d"}
-
-
-def available(method):
-    import importlib.util
-
-    mod = NEEDS.get(method)
-    return mod is None or importlib.util.find_spec(mod) is not None
-
-
-# --------------------------------------------------------------------------------------------------
-# one run
-
-
-def run_method(method, V, F, charts):
-    """Run one method on one case and measure it: a dict of numbers."""
+def measure(V, F, corner_uv, width=1, height=1):
+    """Every column of the table for one atlas (per-corner UVs normalised to its w x h rectangle)."""
     import uvbake
 
-    rec = dict(method=method)
-    if method in PER_CHART:
-        fn = PER_CHART_FN[method]
-        C = np.zeros((len(F), 3, 2))
-        t_total = 0.0
-        n_overlaps = n_overlaps_global = 0
-        extras = []
-        offset = 0.0
-        c_total = 0.0
-        for ch in charts:
-            t0, c0 = time.perf_counter(), time.process_time()
-            out = fn(ch.V, ch.F)
-            t_total += time.perf_counter() - t0
-            c_total += time.process_time() - c0
-            uv, extra = (out if isinstance(out, tuple) else (out, {}))
-            uv = np.asarray(uv, dtype=np.float64)
-            extras.append(extra)
-            ok = np.all(np.isfinite(uv))
-            if ok:
-                rep = uvbake.validate(uv, ch.F)
-                n_overlaps += rep.n_overlaps
-                n_overlaps_global += _global_overlaps(rep)
-            else:
-                n_overlaps = -1
-            # lay charts apart so no two charts share a UV by accident (cut detection)
-            uvc = uv - np.nanmin(uv, axis=0) + [offset, 0.0]
-            offset = float(np.nanmax(uvc[:, 0])) + 1.0 if ok else offset + 1.0
-            C[ch.face_index] = uvc[ch.F]
-        rec.update(time_s=t_total, cpu_s=c_total, packed=False, packing=None, own_charts=len(charts),
-                   overlaps=n_overlaps, overlaps_global=n_overlaps_global)
-        if extras and "start_flipped" in extras[0]:
-            rec["start_flipped"] = sum(e["start_flipped"] for e in extras)
-        if extras and "iterations" in extras[0]:
-            rec["iterations"] = [e["iterations"] for e in extras]
-            rec["converged"] = all(e["converged"] for e in extras)
-    else:
-        t0, c0 = time.perf_counter(), time.process_time()
-        C, info, C_unit, frame_area = ATLAS_FN[method](V, F)
-        rec["time_s"] = time.perf_counter() - t0
-        rec["cpu_s"] = time.process_time() - c0
-        rep = uvbake.validate(C_unit, F)
-        rec.update(info, packed=True, packing=metrics.packing_efficiency(C_unit) / frame_area,
-                   overlaps=rep.n_overlaps, overlaps_global=_global_overlaps(rep))
-        if "own_charts" not in rec:
-            rec["own_charts"] = None
-    if not np.all(np.isfinite(C)):
-        rec.update(finite=False)
-        return rec
-    mm = metrics.measure(V, F, C)
-    rec.update(finite=True, angle_mean=mm.angle_mean, angle_max=mm.angle_max, area=mm.area,
-               collapsed=mm.n_collapsed, charts=mm.n_charts, flipped=mm.n_flipped, seam=mm.seam_length)
+    C = np.asarray(corner_uv, np.float64) * np.array([width, height], dtype=np.float64)   # texel units
+    side = float(max(width, height))
+    unit = C / side
+    rep = uvbake.validate(unit, F)
+    d = metrics.distortion(V, F, C)
+    rec = dict(charts=int(metrics.chart_ids(F, C).max()) + 1, seam=metrics.seam_length(V, F, C),
+               flipped=int(rep.n_flipped), overlaps=int(rep.n_overlaps), angle=d["angle_mean"], area=d["area"],
+               collapsed=d["n_collapsed"],
+               packing=metrics.packing_efficiency(unit, F) / ((width / side) * (height / side)))
+    rec.update(metrics.texel_summary(V, F, C))
     return rec
 
 
-def _global_overlaps(rep):
-    """Overlapping pairs in which neither face is flipped: boundary/global overlaps, not local fold-overs."""
-    if not rep.n_overlaps:
-        return 0
-    flipped = np.zeros(rep.n_faces, bool)
-    flipped[rep.flipped] = True
-    P = rep.overlap_pairs
-    return int(np.count_nonzero(~flipped[P[:, 0]] & ~flipped[P[:, 1]]))
+def run_case(name, path, methods, alphas, *, timeout, bpy_python, log):
+    from uvbake.io.load import load_mesh
+
+    mesh = load_mesh(path)
+    V = np.asarray(mesh.V, np.float64)
+    F = np.asarray(mesh.F, np.int64)
+    log(f"{name}: {len(V):,} vertices, {len(F):,} faces")
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="uvbake_peers_") as tmpdir:
+        tmp = Path(tmpdir)
+        inp = tmp / "mesh.npz"
+        np.savez(inp, V=V, F=F)
+        runs = [(f"uvbake-{a:g}", "uvbake", a) for a in alphas if "uvbake" in methods]
+        runs += [(m, m, None) for m in METHODS[1:] if m in methods]
+        for label, method, alpha in runs:
+            rec = dict(mesh=name, method=label, vertices=len(V), faces=len(F))
+            why = missing(method, bpy_python)
+            if why:
+                rec["skipped"] = why
+            else:
+                try:
+                    if method == "uvbake":
+                        Vm, Fm, C, w, h, extra = run_uvbake(path, inp, tmp, alpha, timeout)
+                    else:
+                        Vm, Fm, C, w, h, extra = run_peer(method, path, inp, tmp, timeout, bpy_python)
+                    rec.update(extra)
+                    rec.update(measure(V if Vm is None else Vm, F if Fm is None else Fm, C, w, h))
+                except subprocess.TimeoutExpired:
+                    rec["failed"] = f"timeout after {timeout:g} s"
+                except Exception as exc:   # a peer's crash is a result, not the end of the run
+                    rec["failed"] = f"{type(exc).__name__}: {exc}"
+            rows.append(rec)
+            log("  " + one_line(rec))
+    return rows
 
 
 # --------------------------------------------------------------------------------------------------
 # output
 
 
-def _fmt(x, nd=3):
-    if x is None:
-        return "—"
-    if isinstance(x, float) and not np.isfinite(x):
-        return "inf"
-    return f"{x:.{nd}f}"
+def _num(x, fmt):
+    return "—" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, fmt)
 
 
-def peers_table(records, cases, methods):
-    lines = ["| mesh | method | time (s) | CPU (s) | flipped | overlap pairs | angle mean | angle max | area | charts "
-             "| seam length | packing |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for case in cases:
-        for method in methods:
-            r = records.get((case, method))
-            if r is None:
-                continue
-            if "skipped" in r:
-                lines.append(f"| {case} | {method} | skipped: {r['skipped']} ||||||||||")
-                continue
-            if not r.get("finite", True):
-                lines.append(f"| {case} | {method} | {r['time_s']:.2f} | non-finite UVs ||||||||||")
-                continue
-            flips = f"{r['flipped']:,}" + (f" ({r['collapsed']} collapsed)" if r["collapsed"] else "")
-            charts = f"{r['charts']:,}"
-            if r.get("own_charts") not in (None, r["charts"]):
-                charts += f" ({r['own_charts']:,})"
-            name = method + (f" (start: {r['start_flipped']:,} flipped)" if r.get("start_flipped") else "")
-            lines.append(
-                f"| {case} | {name} | {r['time_s']:.2f} | {r['cpu_s']:.2f} | {flips} | {r['overlaps']:,} | "
-                f"{_fmt(r['angle_mean'])} | {_fmt(r['angle_max'], 1)} | {_fmt(r['area'])} | {charts} | "
-                f"{_fmt(r['seam'], 2)} | {_fmt(r['packing'], 2)} |")
+def _share(x):
+    return "—" if x is None else (f"{x:.2g}" if x < 0.01 else f"{x:.2f}")
+
+
+def one_line(r):
+    if "skipped" in r or "failed" in r:
+        return f"{r['method']:11s} {r.get('skipped') or r.get('failed')}"
+    return (f"{r['method']:11s} cpu {r['unwrap_cpu_s']:7.2f} / {_num(r.get('whole_cpu_s'), '7.2f')} s  "
+            f"charts {r['charts']:4d}  flipped {r['flipped']}  overlaps {r['overlaps']}  "
+            f"min share {_share(r['min_texel_share'])}  <1/16 {100 * r['area_below_sixteenth']:.1f}%  "
+            f"packing {100 * r['packing']:.1f}%")
+
+
+def table(rows):
+    head = ("| mesh | method | CPU unwrap (s) | CPU whole (s) | charts | seam | flipped | overlap pairs "
+            "| min share | area < 1/4 | area < 1/16 | angle | area | packing |")
+    lines = [head, "|---|---|" + "---:|" * 12]
+    for r in rows:
+        if "skipped" in r or "failed" in r:
+            lines.append(f"| {r['mesh']} | {r['method']} | {'skipped' if 'skipped' in r else 'failed'}: "
+                         f"{r.get('skipped') or r.get('failed')} |" + " |" * 11)
+            continue
+        charts = f"{r['charts']:,}" + (f" ({r['own_charts']:,})" if r.get("own_charts") not in (None, r["charts"])
+                                       else "")
+        lines.append(
+            f"| {r['mesh']} | {r['method']} | {r['unwrap_cpu_s']:.2f} | {_num(r.get('whole_cpu_s'), '.2f')} | "
+            f"{charts} | {r['seam']:.3g} | {r['flipped']:,} | {r['overlaps']:,} | {_share(r['min_texel_share'])} | "
+            f"{100 * r['area_below_quarter']:.1f}% | {100 * r['area_below_sixteenth']:.1f}% | "
+            f"{r['angle']:.3f} | {r['area']:.3f} | {100 * r['packing']:.1f}% |")
     return "\n".join(lines)
 
 
-def table4(records, cases):
-    methods = [m for m in TABLE4_METHODS if any((c, m) in records for c in cases)]
-    lines = ["| mesh | " + " | ".join(methods) + " |", "|---|" + "---|" * len(methods)]
-    for case in cases:
-        cells = []
-        for m in methods:
-            r = records.get((case, m))
-            if r is None or "skipped" in r:
-                cells.append("—")
-            elif not r.get("finite", True):
-                cells.append("non-finite")
-            else:
-                cells.append(f"{r['flipped']:,} / {'yes' if r['overlaps_global'] else 'no'}"
-                             + (f" ({r['overlaps_global']:,})" if r["overlaps_global"] else ""))
-        lines.append(f"| {case} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def plot(records, cases, methods, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(17, 5))
-    colors = dict(zip(methods, plt.cm.tab10(np.arange(len(methods)))))
-    ax = axes[0]
-    width = 0.8 / len(methods)
-    for j, m in enumerate(methods):
-        ys = [records.get((c, m), {}).get("time_s", np.nan) if "skipped" not in records.get((c, m), {})
-              else np.nan for c in cases]
-        ax.bar(np.arange(len(cases)) + (j - len(methods) / 2 + 0.5) * width, ys, width, label=m,
-               color=colors[m])
-    ax.set_yscale("log")
-    ax.set_xticks(np.arange(len(cases)))
-    ax.set_xticklabels(cases, rotation=30, ha="right")
-    ax.set_ylabel("wall time (s), log scale")
-    ax.set_title("speed")
-    ax.legend(fontsize=8)
-    markers = dict(zip(cases, "osD^v<>ph*"))
-    for ax, key, label in ((axes[1], "area", "area distortion (mean |log s²σ1σ2|)"),
-                           (axes[2], "seam", "seam length (3D units)")):
-        for (c, m), r in records.items():
-            if c not in cases or m not in methods or "skipped" in r or not r.get("finite", True):
-                continue
-            ax.scatter(r[key], r["angle_mean"], color=colors[m], marker=markers[c], s=40,
-                       edgecolor="k" if r["flipped"] or r["overlaps"] else "none")
-        ax.set_xlabel(label)
-        ax.set_ylabel("angle distortion (area-weighted mean σ1/σ2)")
-        ax.set_yscale("log")
-        if key == "seam":
-            ax.set_xscale("symlog", linthresh=1.0)
-    for c in cases:
-        axes[1].scatter([], [], marker=markers[c], color="grey", label=c)
-    axes[1].legend(fontsize=8, title="mesh (black edge: flips or overlaps)", title_fontsize=8)
-    axes[1].set_title("quality (lower left is better)")
-    axes[2].set_title("seams traded for distortion")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def machine():
-    try:
-        from uvbake.flatten.solvers.linalg import cholmod_available
-        lin = "CHOLMOD" if cholmod_available() else "SuperLU"
-    except Exception:  # pragma: no cover
-        lin = "?"
-    vers = {}
+def machine(load_start):
     from importlib.metadata import PackageNotFoundError, version
-    for mod in ("libigl", "xatlas", "open3d", "numpy", "scipy"):
+
+    vers = {}
+    for mod in ("xatlas", "open3d", "numpy", "scipy"):
         try:
             vers[mod] = version(mod)
         except PackageNotFoundError:
             vers[mod] = "missing"
-    load = ", load average at the end %.1f / %.1f / %.1f" % os.getloadavg()
-    return (f"{platform.machine()}, {os.cpu_count()} cores{load}, Python {platform.python_version()}, uvbake linear "
-            f"solver {lin}; " + ", ".join(f"{k} {v}" for k, v in vers.items()))
+    model = "?"
+    try:
+        model = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return (f"{model} ({platform.machine()}, {os.cpu_count()} cores), Python {platform.python_version()}; "
+            + ", ".join(f"{k} {v}" for k, v in vers.items())
+            + "; load average (1 min) %.1f at the start, %.1f at the end" % (load_start, os.getloadavg()[0]))
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--meshes", nargs="+", default=None, help=f"from {RESEARCH + SAMPLE + CLOSED}")
+    names = mesh_paths()
+    ap.add_argument("--meshes", nargs="+", default=None, help=f"subset of {sorted(names)} (default: all)")
     ap.add_argument("--methods", nargs="+", default=METHODS, choices=METHODS)
-    ap.add_argument("--quick", action="store_true", help="halftunnel and sample scenes, no UVAtlas")
-    ap.add_argument("--no-table4", action="store_true", help="skip the opened closed meshes of Table 4")
+    ap.add_argument("--alphas", nargs="+", type=float, default=[0.5], help="uvbake's alphas (default 0.5)")
+    ap.add_argument("--timeout", type=float, default=900.0, help="seconds per process before it counts as failed")
+    ap.add_argument("--bpy-python", default=os.environ.get("UVBAKE_BPY_PYTHON", DEFAULT_BPY))
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--name", default="peers", help="file stem of the .md and .json written (default peers)")
     args = ap.parse_args(argv)
+    unknown = sorted(set(args.meshes or []) - set(names))
+    if unknown:
+        ap.error(f"unknown mesh(es) {unknown}; choose from {sorted(names)}")
+    if not MESHES.is_dir():
+        print(f"note: {MESHES} not found; only the sample scenes are run", file=sys.stderr)
 
-    have_meshes = MESHES.is_dir()
-    if args.meshes:
-        cases = args.meshes
-    else:
-        cases = ([m for m in RESEARCH if m != "beetle" and m != "camelhead"] if args.quick else RESEARCH)
-        cases = (cases if have_meshes else []) + SAMPLE
-    methods = [m for m in args.methods if not (args.quick and m == "uvatlas")]
-    t4_cases = [] if (args.no_table4 or args.quick or args.meshes or not have_meshes) else CLOSED
-    if not have_meshes:
-        print(f"note: {MESHES} not found; research meshes skipped", file=sys.stderr)
+    def log(msg):
+        print(msg, file=sys.stderr, flush=True)
 
-    records = {}
-    for case in cases + t4_cases:
-        V, F, charts = load_case(case)
-        print(f"{case}: {len(V):,} vertices, {len(F):,} faces, {len(charts)} chart(s)", file=sys.stderr)
-        for method in (methods if case not in CLOSED else [m for m in methods if m in TABLE4_METHODS]):
-            if not available(method):
-                records[(case, method)] = dict(method=method, skipped=f"{NEEDS[method]} not installed")
-                continue
-            r = run_method(method, V, F, charts)
-            r.update(case=case, vertices=len(V), faces=len(F))
-            records[(case, method)] = r
-            print(f"  {method:11s} {r['time_s']:8.2f} s  flipped {r.get('flipped')}  overlaps "
-                  f"{r.get('overlaps')}  angle {r.get('angle_mean', float('nan')):.4f}  area "
-                  f"{r.get('area', float('nan')):.4f}  charts {r.get('charts')}", file=sys.stderr, flush=True)
-
+    load_start = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    rows = []
+    for name in (args.meshes or list(names)):
+        rows += run_case(name, names[name], args.methods, args.alphas, timeout=args.timeout,
+                         bpy_python=args.bpy_python, log=log)
+    minutes = (time.perf_counter() - t0) / 60.0
+    md = [f"# uvbake and peers ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())})", "",
+          f"`python bench/peers.py {' '.join(argv if argv is not None else sys.argv[1:])}`".replace(" `", "`"), "",
+          f"Machine: {machine(load_start)}. The run took {minutes:.1f} min. CPU seconds are process CPU "
+          "(user + system, all threads), so they are far less sensitive than wall time to other jobs "
+          "sharing the cores, but not immune (caches, memory bandwidth).", "",
+          table(rows), "",
+          "CPU unwrap: the unwrap call alone (uvbake: `uvbake.unwrap(path, alpha=A)`, load and repair "
+          "included, no bake; blender: `smart_project` + `pack_islands`). CPU whole: the whole process "
+          "(uvbake: the command `uvbake MESH --alpha A --bake checker.png`; peers: a process importing the "
+          "tool, reading the mesh, unwrapping and writing the UVs). charts: through uncut edges (the "
+          "method's own count in brackets where it differs). seam: 3D length of cut edges. flipped, "
+          "overlap pairs: `uvbake.validate`. min share, area < 1/4, < 1/16: texel share s_t = (UV area_t / "
+          "UV total) / (3D area_t / 3D total), its least value and the surface fraction below 1/4 and "
+          "1/16. angle: area-weighted mean sigma1/sigma2. area: area-weighted mean |log area ratio| after "
+          "the best global scale. packing: chart texels / atlas texels. Definitions: bench/peers.py, "
+          "the metrics module.", ""]
     args.out.mkdir(parents=True, exist_ok=True)
-    sizes = {c: next(r for (cc, _), r in records.items() if cc == c) for c in cases + t4_cases}
-    head = [f"# uvbake and peers ({time.strftime('%Y-%m-%d')})", "", f"Machine: {machine()}.", "",
-            "Meshes: " + ", ".join(f"{c} ({sizes[c]['vertices']:,} v, {sizes[c]['faces']:,} f)"
-                                   for c in cases + t4_cases) + ".", ""]
-    md = head + ["## Peers", "", peers_table(records, cases, methods), "",
-                 "time: wall seconds of the whole method (CPU: process CPU seconds, all threads; other jobs shared the "
-                 "2 cores during this run, so wall times are inflated where the load average exceeds 2) (uvbake: `parameterize` incl. its LSCM start; ARAP and "
-                 "SLIM: incl. the LSCM start); flipped: against the chart's orientation (collapsed: zero UV "
-                 "area, left out of the distortion columns); overlap pairs: `uvbake.validate` (per-chart "
-                 "methods: within charts; packers: whole atlas); angle: sigma1/sigma2, area-weighted mean and "
-                 "max; area: area-weighted mean |log(s^2 sigma1 sigma2)| after the best global s (weighted "
-                 "median); charts: components through uncut edges (the method's own count in brackets where "
-                 "it differs); seam length: 3D length of cut interior edges; packing: UV area / atlas area. SLIM 'start: k "
-                 "flipped': its LSCM start had flipped triangles, where the symmetric Dirichlet energy is "
-                 "infinite, and SLIM returned that start unchanged or barely moved.",
-                 ""]
-    if any(c in RESEARCH + CLOSED for c in cases + t4_cases):
-        t4c = [c for c in RESEARCH + CLOSED if c in cases + t4_cases]
-        md += ["## Table 4 verdicts: flipped triangles / global overlaps", "", table4(records, t4c), "",
-               "global overlaps: overlapping pairs of which neither face is flipped (boundary crossings, not "
-               "local fold-overs; count in brackets). ABF / ABF++ (the paper's other peer) has no Python package "
-               "and is not run. " + ("bumpy, cow and fandisk are closed: opened here by removing the faces "
-                                      "around vertex 0 (one small hole), not by the paper's cuts." if t4_cases
-                                      else ""), ""]
-    (args.out / "peers.md").write_text("\n".join(md) + "\n")
-    (args.out / "peers.json").write_text(json.dumps(
-        [dict(r, case=c) for (c, _), r in records.items()], indent=1, default=float) + "\n")
-    try:
-        plot(records, cases, methods, args.out / "peers.png")
-    except ImportError:
-        print("matplotlib missing: no plot", file=sys.stderr)
+    (args.out / f"{args.name}.md").write_text("\n".join(md) + "\n")
+    (args.out / f"{args.name}.json").write_text(json.dumps(rows, indent=1, default=float) + "\n")
     print("\n".join(md))
 
 

@@ -157,3 +157,53 @@ def test_bad_area_scale_is_refused():
     V, F = grid()
     with pytest.raises(ValueError):
         metrics.distortion(V, F, V[:, :2], area_scale="max")
+
+
+def test_uniformly_scaled_map_gives_every_triangle_its_fair_share():
+    V, F = grid(z=lambda x, y: 0.0 * x)
+    for scale in (1e-3, 1.0, 250.0):
+        uv = scale * (V[:, :2] @ rotation(0.3).T) + [5.0, 7.0]
+        s = metrics.texel_share(V, F, uv[F])
+        # rtol 1e-9: at scale 1e-3 the offset of 7 costs ~log10(7e3) digits of the UV differences
+        assert np.allclose(s, 1.0, rtol=1e-9, atol=0)
+        summary = metrics.texel_summary(V, F, uv[F])
+        assert np.isclose(summary["min_texel_share"], 1.0, rtol=1e-9)
+        assert summary["area_below_quarter"] == 0.0 and summary["area_below_sixteenth"] == 0.0
+
+
+def test_halving_one_of_two_equal_triangles_gives_the_analytic_shares():
+    # two right triangles of area 1/2 each; in UV the first keeps area 1/2, the second gets 1/4
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    C = V[:, :2][F].copy()
+    C[1] = [[0, 0], [1, 1], [0, 0.5]]                      # second triangle: area 1/4 (flat shear)
+    # UV total 3/4: shares (1/2 / 3/4) / (1/2) = 4/3 and (1/4 / 3/4) / (1/2) = 2/3
+    s = metrics.texel_share(V, F, C)
+    assert np.allclose(s, [4 / 3, 2 / 3], rtol=1e-12)
+    assert metrics.area_below(V, F, s, 0.7) == 0.5        # half the surface under 0.7 of fair
+    assert metrics.area_below(V, F, s, 0.5) == 0.0
+
+
+def test_starved_triangle_is_found_and_its_area_counted():
+    V, F = grid(nx=5, ny=5)                                # 32 triangles of area 1/2, total 16
+    C = V[:, :2][F].copy()
+    C[7] = C[7].mean(axis=0) + 0.01 * (C[7] - C[7].mean(axis=0))   # shrunk 100x in length
+    s = metrics.texel_share(V, F, C)
+    # UV total 16 - 1/2 + 1/2e-4; share of the shrunk one (0.5e-4 / total) / (0.5 / 16)
+    total = 16 - 0.5 + 0.5e-4
+    assert np.isclose(s[7], (0.5e-4 / total) / (0.5 / 16), rtol=1e-12)
+    assert np.allclose(np.delete(s, 7), (0.5 / total) / (0.5 / 16), rtol=1e-12)
+    summary = metrics.texel_summary(V, F, C)
+    assert np.isclose(summary["min_texel_share"], s[7], rtol=1e-12)
+    assert np.isclose(summary["area_below_sixteenth"], 0.5 / 16, rtol=1e-12)
+    assert np.isclose(summary["area_below_quarter"], 0.5 / 16, rtol=1e-12)
+
+
+def test_texel_share_ignores_zero_area_faces_and_mirroring():
+    V, F = grid(nx=3, ny=2)
+    V = np.vstack([V, [[0.5, 0.0, 0.0]]])                  # on edge (0,1): a zero-area face
+    F = np.vstack([F, [[0, 1, len(V) - 1]]])
+    uv = V[:, :2] * [-2.0, 2.0]                            # mirrored, scaled: still fair
+    s = metrics.texel_share(V, F, uv[F])
+    assert s[-1] == 1.0 and np.allclose(s[:-1], 1.0, rtol=1e-12)   # zero 3D area: needs no texels
+    assert np.isclose(metrics.texel_summary(V, F, uv[F])["min_texel_share"], 1.0, rtol=1e-12)
