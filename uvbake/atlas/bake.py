@@ -1,4 +1,4 @@
-"""Texture baking through Open3D: a UV-space checker (distortion made visible) and vertex colours.
+"""Texture baking: a UV-space checker (distortion made visible) and vertex colours.
 
     img = bake_checker(V, F, corner_uv, texture_size_px=1024)            # (H,W,3) uint8
     img = bake_vertex_colors(V, F, corner_uv, colors, texture_size_px=1024)
@@ -12,28 +12,19 @@ Conventions (the one internal convention of uvbake, converted only at export):
   ``bake_*_attr_textures`` produce, and the layout an OBJ ``map_Kd`` expects. glTF puts the UV origin at
   the top-left, so the GLB writer stores ``(u, 1 - v)`` and the same image bytes.
 
-How it is done:
-
-- Open3D's ``open3d.t.geometry.TriangleMesh.bake_vertex_attr_textures(size, {attr}, margin, fill)``
-  needs a float32 ``triangle.texture_uvs (m,3,2)`` and float vertex attributes indexed by
-  ``triangle.indices``. For every texel centre it finds the closest point of the UV triangles
-  (Embree's closest-point query on the triangles laid flat at z = 0) and, when that point is within
-  ``margin`` texels, writes the barycentric interpolation of the attribute there (so texels just
-  outside a chart get the chart's value at its boundary, clamped); all others get ``fill``. It only
-  does square textures, and a ``margin`` of 0 marks almost nothing (it compares a float32 squared
-  distance with 0), so uvbake always bakes with ``margin=BAKE_MARGIN_PX`` and ``fill=NaN``: the NaN
-  texels are the background, the rest are "covered".
-- Every bake goes through :func:`bake_corner_attribute`: vertices split per corner (a vertex on a seam
-  has one UV per chart, and Open3D indexes vertex attributes with ``triangle.indices``), the
-  attribute given per corner. The checker bakes the UV itself (each texel receives its own UV, clamped
-  to the chart in the margin) and computes the checker colour per texel in numpy; vertex colours
-  bake ``colors[F]``.
-- Open3D makes a closest-point query for every texel, and those far from all triangles are slow, so
-  the texture is baked in tiles of :data:`TILE_PX` texels, each with only the triangles near it, and
-  tiles far from every triangle are skipped (about 3x faster on a half-empty 2048^2 atlas; same
-  texels, up to float32 rounding exactly at the margin).
-- Dilation (:func:`dilate`) then pushes every covered texel's colour outward to background texels
-  within ``dilate_px`` (Euclidean, nearest covered texel, one ``scipy.ndimage.distance_transform_edt``).
+How it is done: the semantics of Open3D's
+``open3d.t.geometry.TriangleMesh.bake_vertex_attr_textures(size, {attr}, margin, fill)`` (for every
+texel centre, the closest point of the UV triangles; within ``margin`` texels it gets the
+barycentric interpolation of the attribute there, clamped to the triangle, else ``fill``), computed
+by :func:`rasterize` in numpy: texel centres inside a triangle by row spans, the
+:data:`BAKE_MARGIN_PX` band outside from the charts' outline edges. Every bake is a per-corner
+attribute (a vertex on a seam has one UV per chart): the checker bakes the UV itself (each texel
+receives its own UV, clamped to the chart in the margin) and computes the checker colour per texel;
+vertex colours bake ``colors[F]``. Open3D's bake itself is kept as the reference in the tests (same
+covered texels but for float32 rounding at the margin, same values to 1e-5); it is not called here
+because ``import open3d`` alone costs about a second of CPU (docs/decisions/bake.md).
+Dilation (:func:`dilate`) then pushes every covered texel's colour outward to background texels
+within ``dilate_px`` (Euclidean, nearest covered texel, one ``scipy.ndimage.distance_transform_edt``).
 
 Default dilation: :data:`DEFAULT_DILATE_PX` = 17 texels, enough that bilinear filtering at mip levels
 0..3 (each level a 2x box filter of the one below) at any UV point inside a chart never reads
@@ -52,13 +43,10 @@ import numpy as np
 
 from uvbake.errors import InputError
 
-#: Texels within this distance (in texels) of a UV triangle are baked by Open3D itself (clamped to
-#: the closest point of the triangle); must be at least sqrt(2) so that bilinear level-0 reads of any
+#: Texels within this distance (in texels) of a UV triangle are baked (clamped to the closest point
+#: of the triangle); must be at least sqrt(2) so that bilinear level-0 reads of any
 #: point inside a triangle hit covered texels only.
 BAKE_MARGIN_PX = 2.0
-
-#: Bake in tiles of this many texels (see :func:`bake_corner_attribute`).
-TILE_PX = 128
 
 #: Mip levels 0..DEFAULT_MIP_LEVELS-1 are guaranteed free of background by the default dilation.
 DEFAULT_MIP_LEVELS = 4
@@ -126,12 +114,10 @@ def bake_checker(V, F, corner_uv, *, texture_size_px=1024, square_size=None, tex
                          "pass ((r,g,b), (r,g,b)) in 0..255")
     sq = _square_size_uv(V, F, corner_uv, size, square_size, texel_size_world)
 
-    uv = bake_corner_attribute(corner_uv, corner_uv, size)  # each texel's own (clamped) UV
-    covered = ~np.isnan(uv[..., 0])
-    cell = np.floor(np.nan_to_num(uv) / sq).astype(np.int64)
-    parity = (cell[..., 0] + cell[..., 1]) & 1
-    image = np.clip(np.rint(colors), 0, 255).astype(np.uint8)[parity]
-    return _finish(image, covered, dilate_px, background)
+    texel, uv = _sample(corner_uv, corner_uv, size)        # each covered texel's own (clamped) UV
+    cell = np.floor(uv / sq).astype(np.int64)
+    parity = (cell[:, 0] + cell[:, 1]) & 1
+    return _finish(texel, np.clip(np.rint(colors), 0, 255).astype(np.uint8)[parity], size, dilate_px, background)
 
 
 def bake_vertex_colors(V, F, corner_uv, vertex_colors, *, texture_size_px=1024, dilate_px=None,
@@ -158,10 +144,8 @@ def bake_vertex_colors(V, F, corner_uv, vertex_colors, *, texture_size_px=1024, 
     colors = colors / 255.0 if colors.dtype == np.uint8 else colors.astype(np.float64)
     if not np.all(np.isfinite(colors)):
         raise InputError("vertex_colors hold NaN or infinite values; pass finite colours in [0,1]")
-    rgb = bake_corner_attribute(corner_uv, colors[F], size)
-    covered = ~np.isnan(rgb[..., 0])
-    image = np.clip(np.nan_to_num(rgb), 0.0, 1.0) * 255.0
-    return _finish(image, covered, dilate_px, background)
+    texel, rgb = _sample(corner_uv, colors[F], size)
+    return _finish(texel, np.rint(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8), size, dilate_px, background)
 
 
 def dilate(image, mask, *, iterations):
@@ -270,8 +254,8 @@ def _texel_size_world(V, F, corner_uv, size):
     return math.sqrt(area3 / area2) / size
 
 
-def bake_corner_attribute(corner_uv, values, size, *, tile_px=None):
-    """Bake a per-corner attribute with Open3D: ``(size, size, k)`` float64, NaN where uncovered.
+def bake_corner_attribute(corner_uv, values, size):
+    """Bake a per-corner attribute: ``(size, size, k)`` float64, NaN where uncovered.
 
     Parameters
     ----------
@@ -282,67 +266,173 @@ def bake_corner_attribute(corner_uv, values, size, *, tile_px=None):
         to the closest point of the closest triangle up to ``BAKE_MARGIN_PX`` texels outside.
     size : int
         Texture width and height.
-    tile_px : int, optional
-        Bake in tiles of this many texels (default :data:`TILE_PX`), each with only the triangles
-        near it; tiles with no triangle near them are skipped.
-
-    Open3D answers a closest-point query for every texel of the texture, and the queries far from
-    every triangle are the slow ones (they search the whole scene). Baking only the tiles that the
-    UV triangles touch, each with the triangles whose box is within the margin of the tile, gives
-    the same texels: a texel within the margin of its closest triangle lies within the margin of that
-    triangle's box, so the triangle is in its tile's scene.
     """
-    corner_uv = np.asarray(corner_uv, dtype=np.float64)
     values = np.asarray(values, dtype=np.float64)
     squeeze = values.ndim == 2
-    values = values.reshape(len(corner_uv), 3, -1)
-    k = values.shape[2]
-    tile = int(TILE_PX if tile_px is None else tile_px)
-    tile = max(1, min(tile, size))
-    out = np.full((size, size, k), np.nan)
-    # triangle boxes in texel coordinates: x = u * size (columns), y = (1 - v) * size (rows)
-    x = corner_uv[..., 0] * size
-    y = (1.0 - corner_uv[..., 1]) * size
-    pad = BAKE_MARGIN_PX + 1.0
-    x0, x1 = x.min(axis=1) - pad, x.max(axis=1) + pad
-    y0, y1 = y.min(axis=1) - pad, y.max(axis=1) + pad
-    for i0 in range(0, size, tile):
-        rows_sel = (y1 >= i0) & (y0 <= i0 + tile)
-        if not rows_sel.any():
-            continue
-        for j0 in range(0, size, tile):
-            sel = np.flatnonzero(rows_sel & (x1 >= j0) & (x0 <= j0 + tile))
-            if len(sel) == 0:
-                continue
-            # tile-local UVs: texel (i0 + a, j0 + b) has its centre at ((b+.5)/tile, 1-(a+.5)/tile)
-            local = np.empty((len(sel), 3, 2))
-            local[..., 0] = (x[sel] - j0) / tile
-            local[..., 1] = 1.0 - (y[sel] - i0) / tile
-            baked = _bake_open3d(local, values[sel], tile)
-            h, w = min(tile, size - i0), min(tile, size - j0)
-            out[i0:i0 + h, j0:j0 + w] = baked[:h, :w]
+    texel, vals = _sample(corner_uv, values.reshape(len(values), 3, -1), size)
+    out = np.full((size * size, vals.shape[1]), np.nan)
+    out[texel] = vals
+    out = out.reshape(size, size, -1)
     return out[..., 0] if squeeze else out
 
 
-def _bake_open3d(corner_uv, values, size):
-    """One ``bake_vertex_attr_textures`` call on a mesh with vertices split per corner."""
-    import open3d as o3d
-
-    o3c = o3d.core
-    m, k = len(corner_uv), values.shape[2]
-    mesh = o3d.t.geometry.TriangleMesh()
-    mesh.vertex.positions = o3c.Tensor(np.zeros((3 * m, 3), dtype=np.float32))
-    mesh.triangle.indices = o3c.Tensor(np.arange(3 * m, dtype=np.int64).reshape(m, 3))
-    mesh.triangle.texture_uvs = o3c.Tensor(np.ascontiguousarray(corner_uv, dtype=np.float32))
-    mesh.vertex["uvbake_attr"] = o3c.Tensor(np.ascontiguousarray(values.reshape(3 * m, k),
-                                                                 dtype=np.float32))
-    textures = mesh.bake_vertex_attr_textures(size, {"uvbake_attr"}, margin=BAKE_MARGIN_PX,
-                                              fill=float("nan"), update_material=False)
-    return textures["uvbake_attr"].numpy().astype(np.float64).reshape(size, size, k)
+def _sample(corner_uv, values, size):
+    """The attribute ``values (m,3,k)`` at every covered texel: (flat texel indices (c,), values (c,k))."""
+    corner_uv = np.asarray(corner_uv, dtype=np.float64)
+    face, (band, tri, k, s) = rasterize(corner_uv, size)
+    inside = np.flatnonzero(face.ravel() >= 0)
+    f = face.ravel()[inside]
+    gx, gy, h = _planes(corner_uv, values, size)
+    x = (inside % size + 0.5)[:, None]
+    y = (inside // size + 0.5)[:, None]
+    edge = (1.0 - s)[:, None] * values[tri, k] + s[:, None] * values[tri, (k + 1) % 3]
+    return np.concatenate([inside, band]), np.concatenate([gx[f] * x + gy[f] * y + h[f], edge])
 
 
-def _finish(image, covered, dilate_px, background):
-    """Dilate covered colours, paint the rest with the background colour, round to uint8."""
+def _texel_corners(corner_uv, size):
+    """Corners in texel coordinates: x = u * size (columns), y = (1 - v) * size (rows)."""
+    P = np.empty(corner_uv.shape)
+    P[..., 0] = corner_uv[..., 0] * size
+    P[..., 1] = (1.0 - corner_uv[..., 1]) * size
+    return P
+
+
+def _barycentric_planes(P):
+    """Per triangle, lambda_k(x, y) = A_k x + B_k y + C_k: (A, B, C) each (m,3), and 2x signed areas."""
+    a, e1, e2 = P[:, 0], P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det                                    # inf/NaN rows: degenerate, never used inside
+    A1, B1 = e2[:, 1] * inv, -e2[:, 0] * inv
+    A2, B2 = -e1[:, 1] * inv, e1[:, 0] * inv
+    C1 = -(A1 * a[:, 0] + B1 * a[:, 1])
+    C2 = -(A2 * a[:, 0] + B2 * a[:, 1])
+    return (np.stack([-A1 - A2, A1, A2], axis=1), np.stack([-B1 - B2, B1, B2], axis=1),
+            np.stack([1.0 - C1 - C2, C1, C2], axis=1), det)
+
+
+def _planes(corner_uv, values, size):
+    """Per triangle, the attribute as a plane over texel coordinates: value = gx x + gy y + h, (m,k) each."""
+    A, B, C, _ = _barycentric_planes(_texel_corners(corner_uv, size))
+    return (np.einsum("mc,mck->mk", A, values), np.einsum("mc,mck->mk", B, values),
+            np.einsum("mc,mck->mk", C, values))
+
+
+def rasterize(corner_uv, size, *, margin_px=BAKE_MARGIN_PX):
+    """Which triangle covers every texel centre, and where texels within ``margin_px`` outside clamp to.
+
+    Parameters
+    ----------
+    corner_uv : (m,3,2) float array
+        Atlas UVs, v up; texel ``(i, j)`` has its centre at ``u = (j + 0.5) / size``,
+        ``v = 1 - (i + 0.5) / size``.
+    size : int
+        Texture width and height.
+    margin_px : float
+        Texels whose centre is at most this far (Euclidean, in texels) from a triangle are covered.
+
+    Returns
+    -------
+    face : (size, size) int64
+        The triangle whose inside holds the texel centre, -1 elsewhere.
+    band : tuple (texel, tri, k, s) of (b,) arrays
+        The other covered texels (flat index ``i * size + j``): their closest point on the triangles
+        is at ``(1 - s) * corner k + s * corner (k + 1) % 3`` of triangle ``tri``.
+
+    Inside: every triangle is scanned row by row (the span of texel centres between its edges, closed
+    and widened by ``SPAN_EPS_PX`` so that a centre on an edge shared by two triangles is never
+    missed by both); a centre inside several triangles takes the last in face order. Outside: the
+    closest point of the union of the triangles lies on its outline, so only the outline's edges are
+    measured (edges without a welded twin whose triangle turns the same way); the nearest wins
+    (ties: first edge). This is what Open3D's ``bake_vertex_attr_textures`` computes with a
+    closest-point query per texel (a test checks that the two agree), done here in numpy because
+    importing Open3D alone costs about a second of CPU (docs/decisions/bake.md).
+    """
+    corner_uv = np.asarray(corner_uv, dtype=np.float64)
+    P = _texel_corners(corner_uv, size)
+    A, B, C, det = _barycentric_planes(P)
+    face = np.full((size, size), -1, dtype=np.int64)
+    _scan_inside(P, A, B, C, det, size, face)
+    return face, _scan_outline(corner_uv, P, np.sign(det), size, margin_px, face)
+
+
+#: Spans of texel centres inside a triangle are widened by this much (texels) on both sides.
+SPAN_EPS_PX = 1e-7
+
+
+def _scan_inside(P, A, B, C, det, size, face):
+    """Write the triangle of every texel centre inside one (row spans, vectorised over all rows)."""
+    live = np.flatnonzero(np.abs(det) > 1e-9)               # texel^2; thinner ones: outline only
+    Q = P[live]
+    r0 = np.clip(np.ceil(Q[..., 1].min(axis=1) - 0.5), 0, size).astype(np.int64)
+    r1 = np.clip(np.floor(Q[..., 1].max(axis=1) - 0.5), -1, size - 1).astype(np.int64)
+    nrows = np.maximum(r1 - r0 + 1, 0)
+    t = np.repeat(np.arange(len(live)), nrows)              # one entry per (triangle, row)
+    row = r0[t] + np.arange(len(t)) - np.repeat(np.cumsum(nrows) - nrows, nrows)
+    tl = live[t]
+    rest = B[tl] * (row + 0.5)[:, None] + C[tl]             # lambda_k = A_k x + rest_k >= 0
+    At = A[tl]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bound = -rest / At
+    lo_x = np.max(np.where(At > 0, bound, -np.inf), axis=1)
+    hi_x = np.min(np.where(At < 0, bound, np.inf), axis=1)
+    empty = np.any((At == 0) & (rest < 0), axis=1)
+    lo_x = np.maximum(lo_x, Q[t, :, 0].min(axis=1))
+    hi_x = np.minimum(hi_x, Q[t, :, 0].max(axis=1))
+    c0 = np.clip(np.ceil(lo_x - 0.5 - SPAN_EPS_PX), 0, size).astype(np.int64)
+    c1 = np.clip(np.floor(hi_x - 0.5 + SPAN_EPS_PX), -1, size - 1).astype(np.int64)
+    ncols = np.where(empty, 0, np.maximum(c1 - c0 + 1, 0))
+    start = row * size + c0                                 # flat index of each span's first texel
+    seg = np.repeat(np.arange(len(t)), ncols)
+    flat = start[seg] + np.arange(len(seg)) - np.repeat(np.cumsum(ncols) - ncols, ncols)
+    face.ravel()[flat] = tl[seg]
+
+
+def _scan_outline(corner_uv, P, sign, size, margin_px, face):
+    """Texels outside every triangle but within the margin: the closest point of the outline."""
+    m = len(P)
+    k = np.tile(np.arange(3), m)
+    tri = np.repeat(np.arange(m), 3)
+    start = corner_uv[tri, k]
+    end = corner_uv[tri, (k + 1) % 3]
+    # an edge is inside the union when a triangle turning the same way runs it the other way (a twin)
+    fwd = np.ascontiguousarray(np.concatenate([start, end], axis=1)).view(np.dtype((np.void, 32))).ravel()
+    rev = np.ascontiguousarray(np.concatenate([end, start], axis=1)).view(np.dtype((np.void, 32))).ravel()
+    order = np.argsort(fwd, kind="stable")
+    srt = fwd[order]
+    left = np.searchsorted(srt, rev, side="left")
+    right = np.searchsorted(srt, rev, side="right")
+    twin = order[np.minimum(left, len(srt) - 1)] // 3
+    interior = (right - left == 1) & (sign[tri] != 0) & (sign[twin] == sign[tri])
+    tri, k = tri[~interior], k[~interior]
+    A, B = P[tri, k], P[tri, (k + 1) % 3]
+    lo = np.clip(np.ceil(np.minimum(A, B) - margin_px - 0.5), 0, size).astype(np.int64)
+    hi = np.clip(np.floor(np.maximum(A, B) + margin_px - 0.5), -1, size - 1).astype(np.int64)
+    ncol = np.maximum(hi[:, 0] - lo[:, 0] + 1, 0)
+    n = ncol * np.maximum(hi[:, 1] - lo[:, 1] + 1, 0)
+    e = np.repeat(np.arange(len(tri)), n)                   # one entry per (edge, texel of its box)
+    local = np.arange(len(e)) - np.repeat(np.cumsum(n) - n, n)
+    r = local // ncol[e]
+    row = lo[e, 1] + r
+    col = lo[e, 0] + local - r * ncol[e]
+    free = face[row, col] < 0
+    e, row, col = e[free], row[free], col[free]
+    AB = (B - A)[e]
+    L2 = np.einsum("ij,ij->i", AB, AB)
+    p = np.stack([col + 0.5, row + 0.5], axis=1)
+    s = np.clip(np.einsum("ij,ij->i", p - A[e], AB) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+    d = np.hypot(*(A[e] + s[:, None] * AB - p).T)
+    near = d <= margin_px
+    e, s, d, key = e[near], s[near], d[near], row[near] * size + col[near]
+    pick = np.lexsort((e, d, key))                          # per texel: nearest, then first edge
+    first = np.ones(len(pick), bool)
+    first[1:] = key[pick][1:] != key[pick][:-1]
+    pick = pick[first]
+    return key[pick], tri[e[pick]], k[e[pick]], s[pick]
+
+
+def _finish(texel, rgb, size, dilate_px, background):
+    """The image: covered texels (flat indices) get ``rgb`` (uint8), dilated; the rest the background."""
     background = np.asarray(background, dtype=np.float64)
     if background.shape != (3,):
         raise InputError(f"background must be an RGB triple, got {background!r}")
@@ -350,6 +440,10 @@ def _finish(image, covered, dilate_px, background):
         dilate_px = DEFAULT_DILATE_PX
     if isinstance(dilate_px, bool) or not isinstance(dilate_px, (int, np.integer)):
         raise InputError(f"dilate_px must be an integer (-1 fills the image), got {dilate_px!r}")
-    image = np.clip(np.rint(image), 0, 255).astype(np.uint8)
-    image[~covered] = np.clip(np.rint(background), 0, 255).astype(np.uint8)
-    return dilate(image, covered, iterations=None if dilate_px < 0 else int(dilate_px))
+    image = np.empty((size * size, 3), np.uint8)
+    image[:] = np.clip(np.rint(background), 0, 255).astype(np.uint8)
+    image[texel] = rgb
+    covered = np.zeros(size * size, bool)
+    covered[texel] = True
+    return dilate(image.reshape(size, size, 3), covered.reshape(size, size),
+                  iterations=None if dilate_px < 0 else int(dilate_px))
