@@ -109,6 +109,10 @@ def _load_path(path: Path) -> MeshData:
         raise InputError(f"{name}: file is empty (0 bytes); export the mesh again")
     if ext == ".obj":
         return load_obj_uv(path)[0]
+    # own readers for the common files: importing trimesh costs ~0.6 s of CPU (it pulls networkx)
+    simple = _read_binary_ply(path) if ext == ".ply" else _read_off_triangles(path) if ext == ".off" else None
+    if simple is not None:
+        return simple
 
     import trimesh
 
@@ -269,8 +273,58 @@ def _mesh_from_ply_elements(elements: dict, name: str) -> MeshData:
     return _make(V, F, colors, labels, name)
 
 
+def _read_binary_ply(path: Path) -> MeshData | None:
+    """A binary PLY of triangles, read without trimesh; None for anything else (trimesh reads it)."""
+    with open(path, "rb") as f:
+        head = f.read(256).split(b"\n")
+    if len(head) < 2 or head[0].strip() != b"ply" or not head[1].startswith(b"format binary"):
+        return None
+    try:
+        elements = read_ply_elements(path)
+    except (ValueError, KeyError, IndexError, TypeError):
+        return None
+    faces = elements.get("face", {}).get("vertex_indices", elements.get("face", {}).get("vertex_index"))
+    if not isinstance(faces, np.ndarray) or faces.ndim != 2 or faces.shape[1] != 3 or "vertex" not in elements:
+        return None
+    try:
+        return _mesh_from_ply_elements(elements, str(path))
+    except ValueError as exc:
+        if isinstance(exc, InputError):
+            raise
+        return None
+
+
+def _read_off_triangles(path: Path) -> MeshData | None:
+    """A plain ``OFF`` file of triangles (no colours), read without trimesh; None for anything else."""
+    try:
+        text = path.read_text(encoding="ascii")
+    except (UnicodeDecodeError, OSError):
+        return None
+    tokens = " ".join(line.split("#", 1)[0] for line in text.splitlines()).split()
+    if len(tokens) < 4 or tokens[0] != "OFF":
+        return None
+    try:
+        nv, nf = int(tokens[1]), int(tokens[2])
+        body = np.array(tokens[4:], dtype=np.float64)
+    except ValueError:
+        return None
+    # triangles only: trimesh orders the triangles of polygons by corner, not in file order
+    if nv < 0 or nf <= 0 or len(body) != 3 * nv + 4 * nf:
+        return None
+    faces = body[3 * nv:].reshape(nf, 4)
+    if not np.all(faces[:, 0] == 3) or not np.all(faces[:, 1:] == np.rint(faces[:, 1:])):
+        return None
+    return _make(body[:3 * nv].reshape(nv, 3), faces[:, 1:].astype(np.int64), None, None, str(path))
+
+
 def _fan_triangulate(raw_faces):
     """Triangles of polygons in file order, and how many triangles each polygon gave."""
+    if isinstance(raw_faces, np.ndarray) and raw_faces.ndim == 2:   # polygons of one size
+        n, k = raw_faces.shape
+        j = np.arange(1, max(k - 1, 1))
+        raw = raw_faces.astype(np.int64)
+        tris = np.stack([np.repeat(raw[:, :1], len(j), axis=1), raw[:, j], raw[:, j + 1]], axis=2)
+        return tris.reshape(-1, 3), np.full(n, max(k - 2, 0), dtype=np.int64)
     tris, counts = [], []
     for poly in raw_faces:
         poly = [int(i) for i in np.asarray(poly).reshape(-1)]
