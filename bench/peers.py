@@ -82,18 +82,21 @@ def child_env():
     return env
 
 
-def run_child(cmd, timeout):
-    """Run a command; its process CPU seconds (user + system of it and its waited-for children)."""
+def run_child(cmd, timeout, *, ok_codes=(0,)):
+    """Run a command: (CPU seconds of it and its waited-for children, user + system; wall; exit code).
+
+    An exit code outside ``ok_codes`` raises RuntimeError with the last line of its stderr.
+    """
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=child_env())
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    if proc.returncode != 0:
+    if proc.returncode not in ok_codes:
         tail = (proc.stderr.strip().splitlines() or ["(no message)"])[-1]
         raise RuntimeError(f"exit {proc.returncode}: {tail}")
-    return cpu, wall
+    return cpu, wall, proc.returncode
 
 
 def uvbake_command():
@@ -112,18 +115,19 @@ def uvbake_command():
 
 def run_uvbake(path, inp, tmp, alpha, timeout, **_):
     out = tmp / "uvbake.npz"
-    cpu, wall = run_child([sys.executable, str(HERE / "peer_worker.py"), "uvbake", str(inp), str(out),
-                           "--mesh", str(path), "--alpha", str(alpha)], timeout)
+    cpu, wall, _ = run_child([sys.executable, str(HERE / "peer_worker.py"), "uvbake", str(inp), str(out),
+                              "--mesh", str(path), "--alpha", str(alpha)], timeout)
     d = np.load(out)
     rec = dict(unwrap_cpu_s=float(d["unwrap_cpu_s"]), worker_cpu_s=cpu, worker_wall_s=wall,
                own_charts=int(d["charts"]), valid=bool(d["valid"]))
     report = tmp / "report.json"
     try:
-        ccpu, cwall = run_child(uvbake_command() + [str(path), "--alpha", str(alpha), "--bake",
-                                                    str(tmp / "checker.png"), "-o", str(tmp / "out.obj"),
-                                                    "--json", str(report), "-q"], timeout)
+        # exit 1: the atlas is not valid (files are written all the same): the CPU time still counts
+        ccpu, cwall, code = run_child(uvbake_command() + [str(path), "--alpha", str(alpha), "--bake",
+                                                          str(tmp / "checker.png"), "-o", str(tmp / "out.obj"),
+                                                          "--json", str(report), "-q"], timeout, ok_codes=(0, 1))
         r = json.loads(report.read_text())
-        rec.update(whole_cpu_s=ccpu, whole_wall_s=cwall, command_charts=int(r["charts_final"]),
+        rec.update(whole_cpu_s=ccpu, whole_wall_s=cwall, command_exit=code, command_charts=int(r["charts_final"]),
                    command_bake_wall_s=float(r["timings"].get("bake_s", float("nan"))))
     except (RuntimeError, subprocess.TimeoutExpired) as exc:
         rec.update(whole_cpu_s=None, command_error=str(exc))
@@ -137,7 +141,7 @@ def run_peer(method, path, inp, tmp, timeout, bpy_python, **_):
                "--gutter-px", str(GUTTER_PX), "--texture-size", str(TEXTURE_PX)]
     else:
         cmd = [sys.executable, str(HERE / "peer_worker.py"), method, str(inp), str(out)]
-    cpu, wall = run_child(cmd, timeout)
+    cpu, wall, _ = run_child(cmd, timeout)
     d = np.load(out)
     rec = dict(unwrap_cpu_s=float(d["unwrap_cpu_s"]), whole_cpu_s=cpu, whole_wall_s=wall)
     for k in ("charts", "atlases", "max_stretch", "smart_cpu_s", "pack_cpu_s", "build_cpu_s", "import_cpu_s"):
@@ -252,6 +256,17 @@ def table(rows):
     return "\n".join(lines)
 
 
+def commit():
+    try:
+        out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                             text=True, timeout=10)
+        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "uvbake", "bench"],
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        return out.stdout.strip() + (" with uncommitted changes" if dirty else "") if out.returncode == 0 else "?"
+    except (OSError, subprocess.SubprocessError):
+        return "?"
+
+
 def machine(load_start):
     from importlib.metadata import PackageNotFoundError, version
 
@@ -299,7 +314,8 @@ def main(argv=None):
                          bpy_python=args.bpy_python, log=log)
     minutes = (time.perf_counter() - t0) / 60.0
     md = [f"# uvbake and peers ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())})", "",
-          f"`python bench/peers.py {' '.join(argv if argv is not None else sys.argv[1:])}`".replace(" `", "`"), "",
+          f"`python bench/peers.py {' '.join(argv if argv is not None else sys.argv[1:])}`".replace(" `", "`")
+          + f" on uvbake commit {commit()}.", "",
           f"Machine: {machine(load_start)}. The run took {minutes:.1f} min. CPU seconds are process CPU "
           "(user + system, all threads), so they are far less sensitive than wall time to other jobs "
           "sharing the cores, but not immune (caches, memory bandwidth).", "",

@@ -207,3 +207,19 @@ def test_texel_share_ignores_zero_area_faces_and_mirroring():
     s = metrics.texel_share(V, F, uv[F])
     assert s[-1] == 1.0 and np.allclose(s[:-1], 1.0, rtol=1e-12)   # zero 3D area: needs no texels
     assert np.isclose(metrics.texel_summary(V, F, uv[F])["min_texel_share"], 1.0, rtol=1e-12)
+
+
+def test_peers_measure_undoes_a_per_axis_normalised_atlas():
+    """bench/peers.py measures xatlas-style UVs (u / width, v / height) in texel units."""
+    spec = importlib.util.spec_from_file_location("bench_peers", _PATH.parent / "peers.py")
+    peers = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(peers)
+    V, F = grid(nx=5, ny=3)                                # a 4 x 2 rectangle, area 8
+    width, height = 200, 100
+    texel = 20.0 * V[:, :2] + [10.0, 5.0]                  # 80 x 40 texels, an isometry up to scale
+    C = (texel / [width, height])[F]                       # normalised per axis: anisotropic in [0,1]^2
+    rec = peers.measure(V, F, C, width, height)
+    assert np.isclose(rec["min_texel_share"], 1.0, rtol=1e-12) and rec["area_below_quarter"] == 0.0
+    assert np.isclose(rec["angle"], 1.0, rtol=1e-12) and rec["area"] < 1e-12
+    assert np.isclose(rec["packing"], 80 * 40 / (width * height), rtol=1e-12)
+    assert rec["charts"] == 1 and rec["seam"] == 0.0 and rec["flipped"] == 0 and rec["overlaps"] == 0
