@@ -75,7 +75,7 @@ def mesh_paths():
 
 
 def child_env():
-    """The children import uvbake from this checkout (and its plugins) first."""
+    """The children import uvbake from this checkout (and its plugins) first (and run in it: ``-m`` puts the cwd first)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), str(ROOT / "plugins")] + ([env["PYTHONPATH"]] if
                                                                                env.get("PYTHONPATH") else []))
@@ -89,7 +89,7 @@ def run_child(cmd, timeout, *, ok_codes=(0,)):
     """
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=child_env())
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=child_env(), cwd=ROOT)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
