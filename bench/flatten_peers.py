@@ -47,11 +47,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import metrics  # noqa: E402
-
-ROOT = HERE.parent
-MESHES = ROOT.parent / "shared" / "meshes"
-SCENES = ROOT / "sample_scenes"
-RESULTS = HERE / "results"
+from peers import MESHES, RESULTS, SCENES  # noqa: E402
 
 RESEARCH = ["halftunnel", "camelhead", "beetle"]
 SAMPLE = ["disk_holes", "sphere_cap", "scene", "multi_component"]
