@@ -333,7 +333,7 @@ def rasterize(corner_uv, size, *, margin_px=BAKE_MARGIN_PX):
 
     Returns
     -------
-    face : (size, size) int64
+    face : (size, size) int32 (int64 past 2^31 triangles)
         The triangle whose inside holds the texel centre, -1 elsewhere.
     band : tuple (texel, tri, k, s) of (b,) arrays
         The other covered texels (flat index ``i * size + j``): their closest point on the triangles
@@ -351,7 +351,7 @@ def rasterize(corner_uv, size, *, margin_px=BAKE_MARGIN_PX):
     corner_uv = np.asarray(corner_uv, dtype=np.float64)
     P = _texel_corners(corner_uv, size)
     A, B, C, det = _barycentric_planes(P)
-    face = np.full((size, size), -1, dtype=np.int64)
+    face = np.full((size, size), -1, dtype=np.int32 if len(corner_uv) < 2**31 else np.int64)
     _scan_inside(P, A, B, C, det, size, face)
     return face, _scan_outline(corner_uv, P, np.sign(det), size, margin_px, face)
 
