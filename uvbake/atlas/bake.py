@@ -114,9 +114,15 @@ def bake_checker(V, F, corner_uv, *, texture_size_px=1024, square_size=None, tex
                          "pass ((r,g,b), (r,g,b)) in 0..255")
     sq = _square_size_uv(V, F, corner_uv, size, square_size, texel_size_world)
 
-    texel, uv = _sample(corner_uv, corner_uv, size)        # each covered texel's own (clamped) UV
-    cell = np.floor(uv / sq).astype(np.int64)
-    parity = (cell[:, 0] + cell[:, 1]) & 1
+    # each covered texel's own UV: its centre inside a triangle, its closest point in the margin
+    face, (band, tri, k, s) = rasterize(corner_uv, size)
+    inside = np.flatnonzero(face.ravel() >= 0)
+    row, col = np.divmod(inside, size)
+    edge = _on_edges(corner_uv, tri, k, s)
+    u = np.concatenate([(col + 0.5) / size, edge[:, 0]])
+    v = np.concatenate([1.0 - (row + 0.5) / size, edge[:, 1]])
+    texel = np.concatenate([inside, band])
+    parity = (np.floor(u / sq).astype(np.int64) + np.floor(v / sq).astype(np.int64)) & 1
     return _finish(texel, np.clip(np.rint(colors), 0, 255).astype(np.uint8)[parity], size, dilate_px, background)
 
 
@@ -285,8 +291,13 @@ def _sample(corner_uv, values, size):
     gx, gy, h = _planes(corner_uv, values, size)
     x = (inside % size + 0.5)[:, None]
     y = (inside // size + 0.5)[:, None]
-    edge = (1.0 - s)[:, None] * values[tri, k] + s[:, None] * values[tri, (k + 1) % 3]
+    edge = _on_edges(values, tri, k, s)
     return np.concatenate([inside, band]), np.concatenate([gx[f] * x + gy[f] * y + h[f], edge])
+
+
+def _on_edges(values, tri, k, s):
+    """Per-corner ``values (m,3,...)`` at ``(1 - s) * corner k + s * corner k+1`` of triangles ``tri``."""
+    return (1.0 - s)[:, None] * values[tri, k] + s[:, None] * values[tri, (k + 1) % 3]
 
 
 def _texel_corners(corner_uv, size):
