@@ -29,7 +29,7 @@ Methods
 Per-chart methods run on each input chart (labelled scenes: the labelled charts; research meshes: the
 mesh itself), so their seams are the chart borders; they do not pack. Overlaps of per-chart methods
 are counted within charts (their charts are not laid out together); for packers over the whole atlas.
-Metric definitions are in ``bench/metrics.py``.
+Metric definitions are in ``uvbake/analysis/metrics.py``.
 """
 
 from __future__ import annotations
@@ -45,9 +45,11 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-import metrics  # noqa: E402
+sys.path.insert(0, str(HERE.parent))                    # this checkout's uvbake first
+sys.path.insert(1, str(HERE))
 from peers import MESHES, RESULTS, SCENES  # noqa: E402
+
+from uvbake.analysis import metrics  # noqa: E402
 
 RESEARCH = ["halftunnel", "camelhead", "beetle"]
 SAMPLE = ["disk_holes", "sphere_cap", "scene", "multi_component"]

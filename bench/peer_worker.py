@@ -20,7 +20,6 @@ import argparse
 import time
 
 
-
 def run_uvbake(mesh, alpha):
     import uvbake
 

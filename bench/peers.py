@@ -24,7 +24,7 @@ system, all threads) besides the CPU of the unwrap call alone (``time.process_ti
 Peers get the mesh exactly as loaded (``uvbake.io.load.load_mesh``, no repair), closed meshes included. A
 missing peer is reported as skipped, a crash or a timeout as failed; the run goes on.
 
-Columns (definitions in the metrics module; UVs measured in texel units of the method's own atlas
+Columns (definitions in uvbake/analysis/metrics.py; UVs measured in texel units of the method's own atlas
 rectangle, so xatlas's per-axis normalisation is undone):
 
 - charts: components of faces joined through uncut edges; seam: 3D length of cut interior edges.
@@ -54,8 +54,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-import metrics  # noqa: E402
+sys.path.insert(0, str(HERE.parent))                    # this checkout's uvbake first
+sys.path.insert(1, str(HERE))
+from uvbake.analysis import metrics  # noqa: E402
 
 ROOT = HERE.parent
 MESHES = ROOT.parent / "shared" / "meshes"
@@ -172,7 +173,7 @@ def measure(V, F, corner_uv, width=1, height=1):
     unit = C / side
     rep = uvbake.validate(unit, F)
     d = metrics.distortion(V, F, C)
-    rec = dict(charts=int(metrics.chart_ids(F, C).max()) + 1, seam=metrics.seam_length(V, F, C),
+    rec = dict(charts=int(metrics.chart_ids(F, C).max()) + 1, seam=metrics.uv_seam_length(V, F, C),
                flipped=int(rep.n_flipped), overlaps=int(rep.n_overlaps), angle=d["angle_mean"], area=d["area"],
                collapsed=d["n_collapsed"],
                packing=metrics.packing_efficiency(unit, F) / ((width / side) * (height / side)))
@@ -329,7 +330,7 @@ def main(argv=None):
           "UV total) / (3D area_t / 3D total), its least value and the surface fraction below 1/4 and "
           "1/16. angle: area-weighted mean sigma1/sigma2. area: area-weighted mean |log area ratio| after "
           "the best global scale. packing: chart texels / atlas texels. Definitions: bench/peers.py, "
-          "the metrics module.", ""]
+          "uvbake/analysis/metrics.py.", ""]
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / f"{args.name}.md").write_text("\n".join(md) + "\n")
     (args.out / f"{args.name}.json").write_text(json.dumps(rows, indent=1, default=float) + "\n")
