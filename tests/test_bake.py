@@ -368,3 +368,28 @@ def test_shared_edges_leave_no_cracks_and_every_covered_texel_is_within_the_marg
     q = (1 - s)[:, None] * P[tri, k] + s[:, None] * P[tri, (k + 1) % 3]
     assert np.all(np.hypot(*(q - p).T) <= BAKE_MARGIN_PX)
     assert np.all(r.ravel()[band] > 0.4 * np.cos(np.pi / 36) - 1.0 / size)
+
+
+def test_zero_area_triangles_bake_their_margin_only():
+    """A UV triangle collapsed to a segment or a point covers the texels within the margin of it."""
+    from uvbake.atlas.bake import BAKE_MARGIN_PX, bake_corner_attribute
+    size = 64
+    C = np.array([[[0.6, 0.6], [0.8, 0.8], [0.7, 0.7]],      # a segment (the third corner on it)
+                  [[0.3, 0.8], [0.3, 0.8], [0.3, 0.8]]])    # a point
+    values = np.array([[[0.0], [1.0], [0.5]], [[7.0], [7.0], [7.0]]])
+    out = bake_corner_attribute(C, values, size)[..., 0]
+    u, v = texel_centres(size)
+    U, Vv = np.meshgrid(u, v)
+    # brute force, in texels: distance to the segment and to the point
+    p = np.stack([U, Vv], axis=-1) * size
+    a, b = C[0, 0] * size, C[0, 1] * size
+    t = np.clip(((p - a) @ (b - a)) / ((b - a) @ (b - a)), 0, 1)
+    d_seg = np.linalg.norm(a + t[..., None] * (b - a) - p, axis=-1)
+    d_pt = np.linalg.norm(p - C[1, 0] * size, axis=-1)
+    near_seg, near_pt = d_seg <= BAKE_MARGIN_PX - 1e-9, d_pt <= BAKE_MARGIN_PX - 1e-9
+    far = (d_seg > BAKE_MARGIN_PX + 1e-9) & (d_pt > BAKE_MARGIN_PX + 1e-9)
+    assert near_seg.sum() > 20 and near_pt.sum() >= 12
+    assert np.all(np.isnan(out[far])) and not np.any(np.isnan(out[near_seg | near_pt]))
+    # the value is the attribute at the closest point: linear along the segment, 7 at the point
+    assert np.allclose(out[near_seg], t[near_seg], atol=1e-12)
+    assert np.all(out[near_pt] == 7.0)

@@ -312,8 +312,8 @@ def _barycentric_planes(P):
     """Per triangle, lambda_k(x, y) = A_k x + B_k y + C_k: (A, B, C) each (m,3), and 2x signed areas."""
     a, e1, e2 = P[:, 0], P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / det                                    # inf/NaN rows: degenerate, never used inside
+    live = np.abs(det) > MIN_DOUBLE_AREA_PX2
+    inv = np.divide(1.0, det, out=np.zeros_like(det), where=live)   # 0: degenerate, never scanned inside
     A1, B1 = e2[:, 1] * inv, -e2[:, 0] * inv
     A2, B2 = -e1[:, 1] * inv, e1[:, 0] * inv
     C1 = -(A1 * a[:, 0] + B1 * a[:, 1])
@@ -370,10 +370,13 @@ def rasterize(corner_uv, size, *, margin_px=BAKE_MARGIN_PX):
 #: Spans of texel centres inside a triangle are widened by this much (texels) on both sides.
 SPAN_EPS_PX = 1e-7
 
+#: Triangles with twice their area (texels^2) at most this are segments: only their edges bake.
+MIN_DOUBLE_AREA_PX2 = 1e-9
+
 
 def _scan_inside(P, A, B, C, det, size, face):
     """Write the triangle of every texel centre inside one (row spans, vectorised over all rows)."""
-    live = np.flatnonzero(np.abs(det) > 1e-9)               # texel^2; thinner ones: outline only
+    live = np.flatnonzero(np.abs(det) > MIN_DOUBLE_AREA_PX2)   # thinner ones: outline only
     Q = P[live]
     r0 = np.clip(np.ceil(Q[..., 1].min(axis=1) - 0.5), 0, size).astype(np.int64)
     r1 = np.clip(np.floor(Q[..., 1].max(axis=1) - 0.5), -1, size - 1).astype(np.int64)
