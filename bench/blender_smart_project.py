@@ -3,9 +3,9 @@
     /work/venvs/bpy/bin/python bench/blender_smart_project.py IN.npz OUT.npz [--gutter-px 4 --texture-size 1024]
 
 IN.npz holds ``V (n,3)`` and ``F (m,3)``. OUT.npz gets ``corner_uv (m,3,2)`` (face order of F, UVs in
-[0,1]^2), ``unwrap_cpu_s`` (process CPU seconds of the operators: edit mode, ``smart_project``,
-``pack_islands``; the first two are ``smart_cpu_s``, the packing ``pack_cpu_s``), ``build_cpu_s`` (building the mesh with ``from_pydata``) and ``import_cpu_s``
-(``import bpy``). bpy 4.5 pins numpy 1.26, so this file runs in its own venv and imports nothing from
+[0,1]^2), ``unwrap_cpu_s`` (process CPU seconds of the operators: edit mode and ``smart_project``,
+``smart_cpu_s``, then ``pack_islands``, ``pack_cpu_s``), ``build_cpu_s`` (building the mesh with
+``from_pydata``) and ``import_cpu_s`` (``import bpy``). bpy 4.5 pins numpy 1.26, so this file runs in its own venv and imports nothing from
 uvbake. Options: Smart UV Project with Blender's defaults (angle limit 66 degrees, no island margin),
 then ``pack_islands`` with Blender's defaults (concave shapes, any rotation) but a margin of
 ``gutter_px / texture_size_px`` of the atlas side (``margin_method='FRACTION'``), uvbake's default gutter.
