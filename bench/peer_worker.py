@@ -26,8 +26,9 @@ def run_uvbake(mesh, alpha):
     t0 = time.process_time()
     res = uvbake.unwrap(mesh, alpha=alpha)
     t = time.process_time() - t0
-    return dict(corner_uv=res.corner_uv, V=res.V, F=res.F, unwrap_cpu_s=t, charts=res.report["charts_final"],
-                valid=bool(res.report["valid"]))
+    rep = res.report
+    return dict(corner_uv=res.corner_uv, V=res.V, F=res.F, unwrap_cpu_s=t,
+                charts=int(rep.get("charts_final", len(res.charts))), valid=bool(rep.get("valid", True)))
 
 
 def run_xatlas(V, F):

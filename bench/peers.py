@@ -128,8 +128,8 @@ def run_uvbake(path, inp, tmp, alpha, timeout, **_):
                                                           str(tmp / "checker.png"), "-o", str(tmp / "out.obj"),
                                                           "--json", str(report), "-q"], timeout, ok_codes=(0, 1))
         r = json.loads(report.read_text())
-        rec.update(whole_cpu_s=ccpu, whole_wall_s=cwall, command_exit=code, command_charts=int(r["charts_final"]),
-                   command_bake_wall_s=float(r["timings"].get("bake_s", float("nan"))))
+        rec.update(whole_cpu_s=ccpu, whole_wall_s=cwall, command_exit=code, command_charts=r.get("charts_final"),
+                   command_bake_wall_s=r.get("timings", {}).get("bake_s"))
     except (RuntimeError, subprocess.TimeoutExpired) as exc:
         rec.update(whole_cpu_s=None, command_error=str(exc))
     return d["V"], d["F"], d["corner_uv"], 1, 1, rec
