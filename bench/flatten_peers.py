@@ -45,8 +45,8 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))                    # this checkout's uvbake first
-sys.path.insert(1, str(HERE))
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))                # this checkout's uvbake first
 from peers import MESHES, RESULTS, SCENES  # noqa: E402
 
 from uvbake.analysis import metrics  # noqa: E402

@@ -54,8 +54,8 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))                    # this checkout's uvbake first
-sys.path.insert(1, str(HERE))
+if str(HERE.parent) not in sys.path:
+    sys.path.insert(0, str(HERE.parent))                # this checkout's uvbake first
 from uvbake.analysis import metrics  # noqa: E402
 
 ROOT = HERE.parent
@@ -102,12 +102,7 @@ def run_child(cmd, timeout, *, ok_codes=(0,)):
 
 def uvbake_command():
     """How to run the uvbake command from this checkout (``python -m uvbake`` once it has __main__)."""
-    sys.path.insert(0, str(ROOT))
-    try:
-        main = importlib.util.find_spec("uvbake.__main__") is not None
-    finally:
-        sys.path.pop(0)
-    return [sys.executable, "-m", "uvbake" if main else "uvbake.cli"]
+    return [sys.executable, "-m", "uvbake" if (ROOT / "uvbake" / "__main__.py").exists() else "uvbake.cli"]
 
 
 # --------------------------------------------------------------------------------------------------
