@@ -127,7 +127,7 @@ def test_in_process_main_returns_the_status_and_restores_the_handlers(tmp_path, 
         cancel.cancel(signal.SIGINT)
         cancel.check_cancelled()
 
-    monkeypatch.setattr("uvbake.atlas.pipeline.parameterize_charts", interrupted)
+    monkeypatch.setattr("uvbake.atlas.charting.make_charts", interrupted)
     assert main([str(mesh), "-q"]) == 130
     assert signal.getsignal(signal.SIGINT) is before
     assert not cancel.is_cancelled()
