@@ -150,3 +150,13 @@ def test_failed_run_leaves_existing_outputs_untouched(tmp_path, capsys):
 def test_help_returns_0(capsys):
     assert main(["--help"]) == 0
     assert "uvbake check" in capsys.readouterr().out
+
+
+def test_a_uv_index_out_of_range_is_named_as_such(tmp_path, capsys):
+    from uvbake.cli.check import main as check_main
+
+    path = tmp_path / "oor.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nf 1/1 2/2 3/7\n")
+    assert check_main([str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "texture index out of range" in err and "no texture coordinates" not in err

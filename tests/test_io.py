@@ -499,3 +499,58 @@ def test_off_reader_declines_what_it_does_not_handle(tmp_path):
     bad.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")
     with pytest.raises(InputError, match="out of range"):
         load_mesh(bad)
+
+
+# ---------------------------------------------------------------------------------------- issue 15
+
+
+def _sheet_ply(encoding):
+    """A 7 x 7 grid sheet (98 triangles) written by trimesh as ASCII or binary PLY bytes."""
+    import trimesh
+
+    s, t = np.meshgrid(np.arange(8.0), np.arange(8.0), indexing="ij")
+    V = np.column_stack([s.ravel(), t.ravel(), np.zeros(64)])
+    idx = np.arange(64).reshape(8, 8)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    F = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return trimesh.Trimesh(V, F, process=False).export(file_type="ply", encoding=encoding), len(F)
+
+
+@pytest.mark.parametrize("encoding", ["ascii", "binary"])
+def test_a_truncated_ply_is_refused(tmp_path, encoding):
+    data, m = _sheet_ply(encoding)
+    assert len(load_mesh(_write(tmp_path / "whole.ply", data)).F) == m
+    if encoding == "ascii":                        # the last 49 face lines are missing
+        lines = data.split(b"\n")
+        cut = b"\n".join(lines[: len(lines) - 1 - m // 2]) + b"\n"
+    else:                                          # the last 49 faces (13 bytes each) are missing
+        cut = data[: len(data) - 13 * (m // 2)]
+    with pytest.raises(InputError, match=r"98 face.*truncated"):
+        load_mesh(_write(tmp_path / "cut.ply", cut))
+
+
+def test_a_truncated_off_is_refused(tmp_path):
+    path = _write(tmp_path / "t.off", b"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n")
+    with pytest.raises(InputError, match="2 faces.*truncated"):
+        load_mesh(path)
+
+
+BOM = b"\xef\xbb\xbf"
+
+
+@pytest.mark.parametrize("ext, body", [
+    ("obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n"),
+    ("off", b"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n"),
+    ("ply", b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+            b"element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+            b"0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n"),
+])
+def test_a_utf8_byte_order_mark_is_not_data(tmp_path, ext, body):
+    plain = load_mesh(_write(tmp_path / f"plain.{ext}", body))
+    marked = load_mesh(_write(tmp_path / f"bom.{ext}", BOM + body))
+    assert len(marked.V) == 4 and np.array_equal(marked.V, plain.V) and np.array_equal(marked.F, plain.F)
+
+
+def _write(path, data):
+    path.write_bytes(data)
+    return path

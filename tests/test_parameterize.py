@@ -182,3 +182,36 @@ def test_halftunnel_alpha_05_ends_at_a_minimum_not_a_saddle():
     r = parameterize(m.V, m.F, alpha=0.5)
     assert r.converged and r.energy == pytest.approx(96.42475801, rel=1e-8)
     assert is_local_minimum(m.V, m.F, r.uv, alpha=0.5)
+
+
+# ---------------------------------------------------------------------------------------- issue 15
+
+
+@pytest.mark.parametrize("option, value", [
+    ("tol", "1e-8"), ("tol", None), ("tol", float("nan")), ("max_iter", "abc"), ("max_iter", 2.5),
+    ("seed", -1), ("seed", "1"), ("alpha", "x"), ("init", 3), ("backend", None),
+    ("linear_solver", "umfpack"), ("callback", 5),
+])
+def test_every_option_is_checked_up_front_naming_the_parameter(option, value):
+    V, F = plane()
+    with pytest.raises(uvbake.InputError, match=f"^{option}="):
+        parameterize(V, F, **{option: value})
+
+
+def test_workers_is_checked_naming_the_parameter():
+    V, F = plane()
+    with pytest.raises(uvbake.InputError, match="^workers="):
+        parameterize_charts([(V, F)], workers=0)
+
+
+@pytest.mark.parametrize("scale", [2.0 ** 996, 2.0 ** -1000, 1e300, 1e-300])
+def test_any_finite_scale_gives_the_same_map(scale):
+    # F is scale-free: the map of a scaled chart is the scaled map, without overflow or underflow
+    V, F = plane()
+    ref = parameterize(V, F, alpha=0.5)
+    with np.errstate(all="raise"):
+        r = parameterize(V * scale, F, alpha=0.5)
+    assert r.converged and r.n_flipped == 0
+    assert abs(r.energy - ref.energy) <= 1e-9 + 1e-6 * ref.energy
+    rel = np.abs(r.uv / scale - ref.uv).max() / np.abs(ref.uv).max()
+    assert rel < 1e-6

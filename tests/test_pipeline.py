@@ -122,3 +122,53 @@ def test_splits_and_cuts_add_up():
         + [s["seam_length"] for s in rep["splits"]]
     assert all(x > 0 for x in seams)
     assert rep["seam_length_added"] == pytest.approx(sum(seams), rel=1e-12)
+
+
+# ---------------------------------------------------------------------------------------- issue 15
+
+
+def _soup(n):
+    """n separate triangles (no shared vertex)."""
+    base = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    i = np.arange(n)
+    V = (base[None] + np.column_stack([3.0 * (i % 40), 3.0 * (i // 40), 0 * i])[:, None, :]).reshape(-1, 3)
+    return V, np.arange(3 * n).reshape(-1, 3)
+
+
+def test_many_small_pieces_become_many_charts_never_one():
+    # the speck rule once dropped all but the largest of 100,000 one-triangle pieces ("dropped
+    # 99,999 small pieces", an atlas of one triangle); here 3,000 pieces, where it dropped 2,999
+    from uvbake.mesh.repair import repair
+
+    rep = repair(*_soup(3000))
+    assert len(rep.F) == 3000 and not any(a["kind"] == "drop_small_components" for a in rep.actions)
+    V, F = _soup(30)
+    r = unwrap((V, F), texture_size_px=128, gutter_px=1)
+    assert r.report["charts_final"] == 30 and len(r.F) == 30 and r.report["valid"]
+    assert not any(a["kind"] == "drop_small_components" for a in r.report["repair"]["actions"])
+
+
+def test_too_many_pieces_are_refused_before_any_work_with_the_reason(monkeypatch):
+    from uvbake.atlas import pipeline
+
+    def no_charts(*args, **kwargs):
+        raise AssertionError("charts were built before the refusal")
+
+    monkeypatch.setattr("uvbake.atlas.charting.make_charts", no_charts)
+    V, F = _soup(pipeline.MAX_PIECES + 1)
+    with pytest.raises(uvbake.InputError, match=f"{pipeline.MAX_PIECES + 1} separate pieces"):
+        unwrap((V, F))
+
+
+@pytest.mark.parametrize("scale", [2.0 ** 990, 1e300, 1e-300])
+def test_coordinates_at_any_finite_scale_unwrap(scale):
+    st, F = grid(6, 5, jitter=0.2)
+    V = np.column_stack([st, 0.3 * st[:, 0] ** 2])
+    ref = unwrap((V, F), texture_size_px=64, gutter_px=1)
+    with np.errstate(over="raise", invalid="raise", divide="raise"):
+        r = unwrap((V * scale, F), texture_size_px=64, gutter_px=1)
+    assert r.report["valid"] and r.report["all_converged"]
+    assert np.array_equal(r.V, V * scale)                # the input's own coordinates are exported
+    e_ref = sum(c["energy"] for c in ref.report["charts"])
+    e = sum(c["energy"] for c in r.report["charts"])
+    assert abs(e - e_ref) <= 1e-9 + 1e-6 * e_ref

@@ -117,3 +117,12 @@ def test_signature_of_trimesh_unwrap(hemisphere):
     out, result = uvbake_trimesh.unwrap(hemisphere, img, texture_size_px=64, return_result=True)
     assert result.image is None and result.report["options"]["bake"] is None
     assert np.array_equal(np.asarray(uvbake_trimesh.texture_image(out)), np.asarray(img))
+
+
+def test_export_to_an_unsupported_format_is_a_uvbake_error(textured, tmp_path):
+    from uvbake.errors import UvbakeError
+
+    out, _ = textured
+    with pytest.raises(UvbakeError, match=r"path='.*x\.xyz'.*\.obj, \.glb"):
+        uvbake_trimesh.export(out, tmp_path / "x.xyz")
+    assert not list(tmp_path.iterdir())

@@ -25,7 +25,9 @@ def test_quick_start_commands(tmp_path, monkeypatch):
     assert install == "./install.sh" and (REPO / "install.sh").exists()
     assert quick[1] == "python3 -m pytest -q"
     ci = (REPO / ".ci" / "run").read_text()
-    assert "bash install.sh" in ci and "\n" + quick[1] + "\n" in ci   # CI runs the same test command
+    # CI runs the same test command with the pinned versions, then with the newest releases
+    assert "bash install.sh" in ci and "\n" + quick[1] + " || status=$?\n" in ci
+    assert '"$venv/bin/python" -m pytest -q || latest=$?' in ci and "constraints" not in ci.split("venv=")[1].split("pytest")[0]
     args = shlex.split(run)
     assert args[0] == "uvbake"
     (tmp_path / "sample_scenes").symlink_to(REPO / "sample_scenes")

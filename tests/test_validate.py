@@ -507,9 +507,12 @@ def test_massive_overlap_stops_at_the_work_budget_and_is_never_valid(monkeypatch
     monkeypatch.setattr(budgets, "MIN_RAW_PAIRS", 50)
     monkeypatch.setattr(budgets, "RAW_PAIRS_PER_FACE", 1)
     monkeypatch.setattr(budgets, "MAX_CLAIMS", 100)
+    monkeypatch.setattr(budgets, "MAX_OVERLAP_PAIRS", 50)
+    monkeypatch.setattr(budgets, "CHUNK", 16)            # the cap is checked between chunks
     r = validate(uv, resolution_px=32)
     assert not r.complete and not r.valid and r.notes
-    assert 0 < r.n_overlaps < full.n_overlaps
+    # the list stops only once 50 pairs are confirmed: an invalid verdict is certain
+    assert 50 <= r.n_overlaps < full.n_overlaps
     assert set(map(tuple, r.overlap_pairs.tolist())) <= set(map(tuple, full.overlap_pairs.tolist()))
     assert not r.overlap_subpixel.any()  # unknown is not "harmless"
     assert "stopped early" in r.summary()
@@ -525,3 +528,54 @@ def test_uvbake_validate_is_the_function_even_after_importing_the_module():
 
     V, F = grid(2)
     assert uvbake.validate(V, F, resolution_px=32).valid
+
+
+# ---------------------------------------------------------------------------------------- issue 15
+
+
+def _strips(n):
+    """n disjoint parallel slivers along the diagonal whose bounding boxes all overlap each other:
+    n (n-1) / 2 candidate pairs, none overlapping."""
+    k = np.arange(n, dtype=float)[:, None] / n
+    d = 1.0 / n
+    A = np.column_stack([0 * k, k])
+    B = np.column_stack([1 + 0 * k, 1 + k])
+    C = np.column_stack([0 * k, k + d / 2])
+    return np.stack([A, B, C], axis=1)
+
+
+def test_candidate_pairs_are_never_truncated_into_a_verdict(monkeypatch):
+    # with the old raw-pair budget at 1,000 this layout (19,900 candidates, no overlap) was
+    # declared "overlaps are massive"; every candidate is now decided exactly, chunk by chunk
+    from uvbake.validate import budgets
+
+    monkeypatch.setattr(budgets, "MIN_RAW_PAIRS", 1000)
+    monkeypatch.setattr(budgets, "RAW_PAIRS_PER_FACE", 1)
+    monkeypatch.setattr(budgets, "CHUNK", 4096)
+    uv = _strips(200)
+    r = validate(uv, chart_ids=np.arange(200), resolution_px=64)
+    assert r.valid and r.complete and r.n_overlaps == 0, r.summary()
+    assert r.n_candidates >= 200 * 199 // 2 - 200          # all decided (a few share no home cell twice)
+    assert "massive" not in r.summary()
+
+
+def test_collapsed_charts_are_degenerate_not_massive_overlaps():
+    # 3,000 charts collapsed to (nearly) one point, as a failed solve leaves them, beside a good one
+    rng = np.random.default_rng(3)
+    good = np.array([[[0.1, 0.1], [0.9, 0.1], [0.9, 0.9]], [[0.1, 0.1], [0.9, 0.9], [0.1, 0.9]]])
+    tiny = 0.5 + 1e-13 * rng.uniform(-1, 1, size=(3000, 3, 2))
+    uv = np.concatenate([good, tiny])
+    chart_ids = np.concatenate([[0, 0], 1 + np.arange(3000)])
+    r = validate(uv, chart_ids=chart_ids, resolution_px=256)
+    assert r.complete and not r.valid
+    assert r.n_overlaps == 0
+    assert sorted(r.degenerate.tolist()) == list(range(2, 3002))
+    assert "3000 degenerate" in r.summary() and "0 flipped" in r.summary()
+    assert r.charts[0].valid and r.charts[0].n_degenerate == 0
+
+
+def test_zero_area_triangles_are_reported_as_degenerate_up_front():
+    uv = np.array([[[0, 0], [1, 0], [0, 1]], [[2, 2], [3, 3], [4, 4]]], float)
+    r = validate(uv, resolution_px=32)
+    assert r.degenerate.tolist() == [1] and not r.valid
+    assert "1 degenerate" in r.summary() and "0 flipped" in r.summary()

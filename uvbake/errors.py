@@ -22,3 +22,19 @@ class NotDiskError(ChartError):
 
 class SolverError(UvbakeError, RuntimeError):
     """A solver failed on valid input."""
+
+
+class OutputError(UvbakeError, OSError):
+    """An output could not be written (full disk, permissions); the message names the user's path."""
+
+
+class Cancelled(KeyboardInterrupt):
+    """The run was interrupted (SIGINT or SIGTERM); ``signum`` says which.
+
+    A ``KeyboardInterrupt`` subclass, not a :class:`UvbakeError`: the many ``except Exception``
+    clauses (ours around third-party readers, libraries' own) must not turn it into an input error.
+    """
+
+    def __init__(self, signum=None):
+        super().__init__(f"interrupted by signal {signum}" if signum else "interrupted")
+        self.signum = signum

@@ -114,6 +114,10 @@ def texture_image(mesh):
     return img
 
 
+#: Formats that keep per-corner UVs and a texture (what :func:`export` writes).
+EXPORT_EXTENSIONS = (".obj", ".glb", ".gltf")
+
+
 def export(mesh, path, *, verify=True, **kwargs):
     """Write a textured mesh with trimesh's own exporter, keeping seams (no vertex merging).
 
@@ -123,7 +127,14 @@ def export(mesh, path, *, verify=True, **kwargs):
     """
     from pathlib import Path
 
+    from uvbake.errors import InputError, OutputError
+
     path = Path(path)
+    if path.suffix.lower() not in EXPORT_EXTENSIONS:
+        raise InputError(f"path={str(path)!r}: cannot write a textured mesh as {path.suffix or '(no extension)'!r}; "
+                         f"use one of {', '.join(EXPORT_EXTENSIONS)}")
+    if not path.parent.is_dir():
+        raise InputError(f"path={str(path)!r}: folder {path.parent} does not exist; create it first")
     if path.suffix.lower() == ".obj":
         kwargs.setdefault("include_texture", True)
         kwargs.setdefault("include_normals", False)
@@ -132,7 +143,15 @@ def export(mesh, path, *, verify=True, **kwargs):
         if mat is not None and getattr(mat, "name", None) in (None, "material", "material_0"):
             mesh = mesh.copy()
             mesh.visual.material.name = path.stem                # texture written as <stem>.png
-    out = mesh.export(str(path), **kwargs)
+    try:
+        out = mesh.export(str(path), **kwargs)
+    except OSError as exc:
+        from uvbake.io.atomic import write_error
+
+        raise write_error(path, exc, "path=") from None
+    except Exception as exc:  # trimesh raises many types; ours names the path
+        raise OutputError(f"path={str(path)!r}: trimesh could not write it ({type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())[:120]}); write .obj or .glb") from None
     if verify:
         from uvbake.errors import UvbakeError
 

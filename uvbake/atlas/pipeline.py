@@ -20,9 +20,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uvbake.analysis.metrics import chart_distortion, distortion_summary
+from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
 from uvbake.flatten.solve import parameterize_charts
+from uvbake.mesh.arrays import unit_exponent
+from uvbake.mesh.topology import face_adjacency
+
+#: More separate pieces than this is refused up front, before any work: each piece becomes at least
+#: one chart and none is dropped silently (2,000 one-triangle pieces took 358 s, shared machine).
+MAX_PIECES = 1000
 
 BAKE_MODES = (None, "checker", "vertex-colors")
 
@@ -57,27 +64,33 @@ class UnwrapResult:
     vertex_colors: np.ndarray | None
     report: dict = field(default_factory=dict)
 
-    def save(self, path, *, report_path=None, keep_vertex_colors=False):
+    def save(self, path, *, report_path=None, keep_vertex_colors=False, force=False):
         """Write the textured mesh (OBJ+MTL+PNG or GLB by extension) and optionally the JSON report.
 
         The texture alone carries the colour: viewers multiply vertex colours (glTF ``COLOR_0``, OBJ
         ``v x y z r g b``) with the texture, so a colour bake would show its colours squared and a
         checker would look tinted. ``keep_vertex_colors=True`` writes them anyway (for tools that
-        read them as data).
+        read them as data). All files are written together or none (:class:`uvbake.io.atomic.OutputSet`);
+        ``force`` replaces read-only files.
         """
         import json
+        from pathlib import Path
 
-        from uvbake.io.atomic import atomic_write
-        from uvbake.io.export import save_textured
+        from uvbake.io.atomic import OutputSet
+        from uvbake.io.export import textured_files
 
         image = self.image if self.image is not None else _blank(self.report["atlas"]["texture_size_px"])
         colors = self.vertex_colors if keep_vertex_colors else None
-        written = save_textured(path, self.V, self.F, self.corner_uv, image, vertex_colors=colors)
+        files = textured_files(path, self.V, self.F, self.corner_uv, image, vertex_colors=colors)
+        names = [("path", p) for p in files]
         if report_path is not None:
-            with atomic_write(report_path) as fh:
-                json.dump(self.report, fh, indent=1)
-            written = list(written) + [report_path]
-        return written
+            files[Path(report_path)] = (json.dumps(self.report, indent=1) + "\n").encode("utf-8")
+            names.append(("report_path", Path(report_path)))
+        source = self.report.get("input")
+        with OutputSet(names, inputs=[source] if isinstance(source, str) else [], force=force) as outs:
+            for p, data in files.items():
+                outs.write_bytes(p, data)
+            return outs.commit()
 
 
 def _blank(size):
@@ -169,7 +182,11 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
                                            max_charts)
     if weld not in (None, True, False):
         raise InputError(f"weld={weld!r} must be True, False or None (weld only soup-like input)")
-    note = progress or (lambda stage, done, total: None)
+    user_note = progress or (lambda stage, done, total: None)
+
+    def note(stage, done, total):
+        check_cancelled()                        # SIGINT/SIGTERM: every stage and iteration polls
+        user_note(stage, done, total)
 
     def per_iteration(info):
         note("iterate", info["iteration"], max_iter)
@@ -178,10 +195,16 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
     options = dict(options=solve_options, callback=per_iteration)
 
     t = time.perf_counter()
-    V, F, labels, colors, source_name, repair_report = _load(source, face_labels, repair, weld)
+    V, F, labels, colors, source_name, repair_report, k = _load(source, face_labels, repair, weld)
     if bake == "vertex-colors" and colors is None:
         raise InputError(f"{source_name}: has no vertex colours to bake; use --bake-mode checker")
     timings["load_repair_s"] = time.perf_counter() - t
+    check_cancelled()
+    n_pieces = _count_pieces(F, len(V), labels)
+    if n_pieces > MAX_PIECES:
+        raise InputError(f"{source_name}: the mesh is {n_pieces} separate pieces, which would be at least "
+                         f"{n_pieces} charts; uvbake unwraps at most {MAX_PIECES} pieces (none is dropped "
+                         "silently); weld coincident vertices (weld=True, --weld), or remove the small pieces first")
 
     t = time.perf_counter()
     if guarantee:
@@ -265,7 +288,11 @@ def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, t
         "n_flipped_total": int(sum(r.n_flipped for r in results)),
         "timings": timings,
     }
-    return UnwrapResult(V, F, corner_uv, charts, results, chart_ids, image, colors, report)
+    if k:
+        report["coordinate_exponent"] = k   # lengths and areas above are in units of 2**k
+    # the input's own coordinates (the scaling by 2**-k is exact both ways)
+    return UnwrapResult(np.ldexp(V, k) if k else V, F, corner_uv, charts, results, chart_ids, image, colors,
+                        report)
 
 
 def _load(source, face_labels, repair, weld):
@@ -277,7 +304,11 @@ def _load(source, face_labels, repair, weld):
     V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
     # NaN or infinite coordinates are corrupt data, not a reconstruction artefact: refuse them
     # (naming the vertices) rather than silently dropping faces
-    check_arrays(V, F, where=str(mesh.source))
+    V, F = check_arrays(V, F, where=str(mesh.source))
+    # any finite scale: work near unit size by a power of two (exact), export the input's coordinates
+    k = unit_exponent(V)
+    k = k if abs(k) > 64 else 0
+    V = np.ldexp(V, -k) if k else V
     repair_report = None
     if repair:
         from uvbake.mesh.repair import repair as repair_mesh
@@ -288,7 +319,21 @@ def _load(source, face_labels, repair, weld):
             labels = None if labels is None else labels[rep.face_index]
             colors = None if colors is None else colors[rep.vertex_index]
             V, F = rep.V, rep.F
-    return V, F, labels, colors, mesh.source, repair_report
+    return V, F, labels, colors, mesh.source, repair_report, k
+
+
+def _count_pieces(F, n_vertices, labels):
+    """Edge-connected pieces of each label (the charts before any cut), counted without building them."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    fi, fj, _ = face_adjacency(F, n_vertices)
+    if labels is not None:
+        same = np.asarray(labels)[fi] == np.asarray(labels)[fj]
+        fi, fj = fi[same], fj[same]
+    m = len(F)
+    return int(connected_components(coo_matrix((np.ones(len(fi), np.int8), (fi, fj)), shape=(m, m)),
+                                    directed=False)[0])
 
 
 def _pack_and_validate(V, F, charts, results, timings, pack_options):

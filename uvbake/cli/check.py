@@ -73,6 +73,10 @@ def load_uv_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise InputError(f"no such file: {path}; pass the path of a .obj, .glb, .gltf or .ply mesh")
+    if path.lower().endswith(".obj"):
+        from uvbake.io.obj import load_obj_uv
+
+        load_obj_uv(path)        # trimesh drops out-of-range 'vt' indices silently; this names them
     try:
         loaded = trimesh.load(path, process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files

@@ -1,21 +1,23 @@
 """What every ``uvbake`` subcommand shares: the argument parser and the one error-to-exit-code map.
 
 Exit codes: 0 success; 1 a failed result (an invalid atlas or check, a solve that failed, backends
-that disagree); 2 bad input (:class:`uvbake.InputError`, bad arguments, unreadable paths); 3 a bug;
-130 interrupted. Errors print one line, never a traceback (set UVBAKE_DEBUG=1 to see one).
+that disagree, an output that could not be written); 2 bad input (:class:`uvbake.InputError`, bad
+arguments, unreadable paths); 3 a bug; 130 interrupted by SIGINT, 143 by SIGTERM.
+Errors print one line, never a traceback (set UVBAKE_DEBUG=1 to see one).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from collections.abc import Callable
 from typing import Any, NoReturn
 
 from uvbake.errors import InputError, UvbakeError
 
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 2, 3, 130  # 143: SIGTERM
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -37,15 +39,20 @@ class ArgumentParser(argparse.ArgumentParser):
 
 def exit_code(exc: BaseException) -> tuple[int, str]:
     """The exit status of an exception and the words that introduce its one-line message."""
-    if isinstance(exc, KeyboardInterrupt):
-        return EXIT_INTERRUPTED, "interrupted; no output was written"
+    from uvbake import cancel
+
+    signum = getattr(exc, "signum", None) or cancel.cancelled_signal()
+    if isinstance(exc, KeyboardInterrupt) or signum is not None:   # an error caused by the signal is the signal
+        signum = signum or signal.SIGINT
+        return cancel.exit_code(signum), f"interrupted ({signal.Signals(signum).name}); no output was written"
     if isinstance(exc, InputError):
         return EXIT_BAD_INPUT, f"error: {exc}"
     if isinstance(exc, UvbakeError):
         return EXIT_FAILED, f"failed: {exc}"
     if isinstance(exc, OSError):
-        return EXIT_BAD_INPUT, (f"error: {exc.strerror or exc} ({exc.filename or ''}); "
-                                "check the path and permissions")
+        from uvbake.io.atomic import write_error
+
+        return EXIT_BAD_INPUT, f"error: {write_error(exc.filename or '?', exc)}"
     return EXIT_BUG, f"internal error: {type(exc).__name__}: {exc} (rerun with UVBAKE_DEBUG=1 and report it)"
 
 

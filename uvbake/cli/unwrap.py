@@ -3,7 +3,9 @@
     uvbake MESH [--alpha A] [--bake checker.png] [-o OUT.obj|OUT.glb] [--json R.json] [...]
     uvbake unwrap MESH [...]    the same; needed only for a mesh file named like a command
 
-Output files are written atomically and never replace the input. Exit codes: :mod:`uvbake.cli.common`.
+Every output is checked before any work, written to a temporary file beside it, and all are renamed
+into place together at the end, or none (:class:`uvbake.io.atomic.OutputSet`); a run whose atlas fails
+validation writes only its report unless ``--keep-invalid``. Exit codes: :mod:`uvbake.cli.common`.
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ from uvbake.cli.progress import Progress
 from uvbake.errors import InputError
 from uvbake.flatten.options import BACKENDS, DEFAULTS
 from uvbake.flatten.starts import INITS
-from uvbake.io.atomic import atomic_write
-from uvbake.io.export import save_png
+from uvbake.io.atomic import OutputSet
+from uvbake.io.export import png_bytes, textured_files, textured_paths
 from uvbake.pictures import atlas_image
 from uvbake.render import LIGHTING, preview, view_directions
 
@@ -47,6 +49,24 @@ EPILOG = (
 )
 
 
+def _typed(kind: type, lo: float | None = None, hi: float | None = None, *, open_lo: bool = False) -> Any:
+    """An argparse type: a number of ``kind`` within [lo, hi] (lo excluded with ``open_lo``), so that a
+    bad value is a one-line error naming the flag, before any work."""
+    def parse(text: str) -> Any:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not {'a whole number' if kind is int else 'a number'}") from None
+        low = lo is not None and (value <= lo if open_lo else value < lo)
+        if value != value or value in (float("inf"), float("-inf")) or low or (hi is not None and value > hi):
+            bound = f"{'above' if open_lo else 'at least'} {lo}" if hi is None else f"within [{lo}, {hi}]"
+            raise argparse.ArgumentTypeError(f"{text} must be {bound}")
+        return value
+    parse.__name__ = kind.__name__
+    return parse
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of ``uvbake [unwrap] MESH ...``."""
     from uvbake import __version__
@@ -57,19 +77,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", help="textured mesh to write, .obj (with .mtl and .png) or .glb "
                                           "(default: MESH_uv.obj next to the input)")
     g = p.add_argument_group("flattening")
-    g.add_argument("--alpha", type=float, default=DEFAULTS.alpha,
+    g.add_argument("--alpha", type=_typed(float, 0.0, 1.0), default=DEFAULTS.alpha,
                    help=f"weight of area preservation in [0, 1]; 1 - alpha weighs angles (default {DEFAULTS.alpha})")
     g.add_argument("--init", default=DEFAULTS.init, choices=INITS, help=f"start map (default {DEFAULTS.init})")
     g.add_argument("--backend", default=DEFAULTS.backend, choices=BACKENDS,
                    help="lm: Levenberg-Marquardt, full Hessian (default); lbfgs: nlopt L-BFGS")
     g.add_argument("--cross-check", action="store_true",
                    help="also solve every chart with the other backend and fail if they disagree")
-    g.add_argument("--tol", type=float, default=DEFAULTS.tol,
+    g.add_argument("--tol", type=_typed(float, 0.0, open_lo=True), default=DEFAULTS.tol,
                    help=f"scale-free gradient norm to reach (default {DEFAULTS.tol:g})")
-    g.add_argument("--max-iter", type=int, default=DEFAULTS.max_iter,
+    g.add_argument("--max-iter", type=_typed(int, 0), default=DEFAULTS.max_iter,
                    help=f"iteration cap per chart (default {DEFAULTS.max_iter})")
-    g.add_argument("--seed", type=int, default=DEFAULTS.seed, help=f"seed of --init random (default {DEFAULTS.seed})")
-    g.add_argument("--workers", type=int, default=None, help="charts solved in parallel (default: CPU count)")
+    g.add_argument("--seed", type=_typed(int, 0, 2**32 - 1), default=DEFAULTS.seed, help=f"seed of --init random (default {DEFAULTS.seed})")
+    g.add_argument("--workers", type=_typed(int, 1), default=None, help="charts solved in parallel (default: CPU count)")
     g = p.add_argument_group("guarantees")
     g.add_argument("--no-auto-cut", action="store_true",
                    help="refuse closed charts and charts with handles instead of cutting them into disks")
@@ -89,11 +109,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="weld coincident boundary vertices (default: only for triangle soups; a mesh's own "
                         "cuts stay cuts)")
     g = p.add_argument_group("atlas and texture")
-    g.add_argument("--texture-size", type=int, default=None, metavar="PX",
+    g.add_argument("--texture-size", type=_typed(int, 16, 16384), default=None, metavar="PX",
                    help="texture side in texels (default 1024; with --texel-density the texture grows to fit)")
-    g.add_argument("--gutter", type=int, default=None, metavar="PX",
+    g.add_argument("--gutter", type=_typed(int, 0), default=None, metavar="PX",
                    help="gap between charts in texels (default 4, or what --mip-levels needs)")
-    g.add_argument("--texel-density", type=float, default=None, metavar="PX_PER_UNIT",
+    g.add_argument("--texel-density", type=_typed(float, 0.0, open_lo=True), default=None, metavar="PX_PER_UNIT",
                    help="fixed texels per world unit, the same across assets (the texture grows to fit, or with "
                         "--texture-size the command says it cannot fit)")
     g.add_argument("--mip-levels", type=int, default=None, metavar="N",
@@ -121,20 +141,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--atlas-image-size", type=int, default=512, metavar="PX",
                    help="side of the atlas picture in pixels, 16 to 4096 (default 512)")
     p.add_argument("--json", metavar="REPORT", help="write the JSON report here")
+    p.add_argument("--force", action="store_true", help="replace read-only output files")
+    p.add_argument("--keep-invalid", action="store_true",
+                   help="write the outputs even when the atlas fails validation (by default only the report)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
 
 
 def output_path(mesh: str, output: str | None, *, suffix: str = "_uv", ext: str = ".obj") -> Path:
-    """The output path: the one given, or MESH<suffix><ext> beside the input; never the input itself."""
+    """The output path: the one given, or MESH<suffix><ext> beside the input (checked by OutputSet)."""
     src = Path(mesh)
-    out = Path(output) if output else src.with_name(src.stem + suffix + ext)
-    if out.exists() and src.exists() and out.resolve() == src.resolve():
-        raise InputError(f"output {out} is the input mesh; choose another output path with -o")
-    if not out.parent.exists():
-        raise InputError(f"output folder {out.parent} does not exist; create it or choose another path with -o")
-    if out.exists() and out.is_dir():
-        raise InputError(f"output {out} is a folder; give a file name with -o")
-    return out
+    return Path(output) if output else src.with_name(src.stem + suffix + ext)
+
+
+def _check_input(mesh: str) -> None:
+    path = Path(mesh)
+    if not path.exists():
+        raise InputError(f"MESH {mesh}: file not found; check the path")
+    if path.is_dir():
+        raise InputError(f"MESH {mesh} is a folder, not a mesh file; pass the path of a mesh file")
 
 
 @dataclass
@@ -162,8 +186,6 @@ def _bake_output(args: argparse.Namespace) -> tuple[Path | None, str | None]:
 def _check_atlas_args(args: argparse.Namespace) -> None:
     if args.texture_size is None and args.texel_density is None:
         args.texture_size = 1024
-    if args.texel_density is not None and not args.texel_density > 0:      # also NaN
-        raise InputError(f"--texel-density {args.texel_density} must be a positive number of texels per unit")
     if args.mip_levels is not None:
         if not 1 <= args.mip_levels <= 8:
             raise InputError(f"--mip-levels {args.mip_levels} must be from 1 to 8")
@@ -171,27 +193,24 @@ def _check_atlas_args(args: argparse.Namespace) -> None:
         if args.gutter is not None and args.gutter < need:
             raise InputError(f"--gutter {args.gutter} is less than the {need} texels --mip-levels "
                              f"{args.mip_levels} needs; leave --gutter out or raise it")
+    if args.gutter is not None and args.texture_size is not None and args.gutter > args.texture_size // 8:
+        raise InputError(f"--gutter {args.gutter} must be at most {args.texture_size // 8} "
+                         f"(an eighth of --texture-size {args.texture_size})")
     check_texture(args.texture_size, args.gutter, args.texel_density)
 
 
 def _outputs(args: argparse.Namespace) -> _Outputs:
-    """Every output path, checked before any work: right suffixes, distinct, never the input."""
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers {args.workers} must be at least 1")
+    """Every output path, with the right suffix (the targets themselves are checked by OutputSet)."""
+    _check_input(args.mesh)
     _check_atlas_args(args)
     out = output_path(args.mesh, args.output)
+    if out.exists() and Path(args.mesh).exists() and out.samefile(args.mesh):
+        raise InputError(f"output -o {out} is the input; choose another output path")
     if out.suffix.lower() not in (".obj", ".glb"):
-        raise InputError(f"output {out} must end in .obj or .glb")
+        raise InputError(f"-o {out} must end in .obj or .glb")
     report_path = output_path(args.mesh, args.json, suffix="_report", ext=".json") if args.json else None
     bake_path, mode = _bake_output(args)
     preview_path, atlas_path = _picture_outputs(args)
-    outputs = [out] + ([out.with_suffix(".mtl"), out.with_suffix(".png")] if out.suffix.lower() == ".obj" else [])
-    outputs += [p for p in (report_path, bake_path, preview_path, atlas_path) if p is not None]
-    if len({p.resolve() for p in outputs}) < len(outputs):
-        raise InputError(f"two outputs share one path ({', '.join(str(p) for p in outputs)}); "
-                         "give -o, --json and --bake different names")
-    if Path(args.mesh).exists() and Path(args.mesh).resolve() in {p.resolve() for p in outputs}:
-        raise InputError(f"an output would replace the input {args.mesh}; choose other output names")
     return _Outputs(out, report_path, bake_path, mode, preview_path, atlas_path)
 
 
@@ -211,6 +230,15 @@ def _picture_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None
     return preview_path, atlas_path
 
 
+def _targets(paths: _Outputs) -> list[tuple[str, Path]]:
+    """Every file the run may write, with the flag that named it (for messages)."""
+    targets = [("-o", p) for p in textured_paths(paths.mesh)]
+    targets += [(flag, p) for flag, p in (("--json", paths.report), ("--bake", paths.bake),
+                                          ("--preview", paths.preview), ("--atlas-image", paths.atlas))
+                if p is not None]
+    return targets
+
+
 def _solve(args: argparse.Namespace, mode: str | None) -> Any:
     bar = Progress(quiet=args.quiet)
     result = unwrap(args.mesh, alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol,
@@ -228,24 +256,35 @@ def _solve(args: argparse.Namespace, mode: str | None) -> Any:
     return result
 
 
-def _write(result: Any, paths: _Outputs, args: argparse.Namespace, t0: float) -> list[Path]:
-    written = list(result.save(paths.mesh, keep_vertex_colors=args.keep_vertex_colors))
+def _stage_outputs(result: Any, paths: _Outputs, args: argparse.Namespace, outs: OutputSet) -> list[Path]:
+    """Write the textured mesh, the baked texture and the preview to their temporary files."""
+    from uvbake.atlas.pipeline import _blank
+
+    image = result.image if result.image is not None else _blank(result.report["atlas"]["texture_size_px"])
+    files = textured_files(paths.mesh, result.V, result.F, result.corner_uv, image,
+                           vertex_colors=result.vertex_colors if args.keep_vertex_colors else None)
     if paths.bake is not None:
-        save_png(paths.bake, result.image)
-        written.append(paths.bake)
+        files[paths.bake] = png_bytes(result.image, paths.bake)
     if paths.preview is not None:
-        preview(result, path=paths.preview, size_px=args.preview_size, lighting=args.preview_lighting,
-                views=[v.strip() for v in args.preview_views.split(",")])
-        written.append(paths.preview)
+        files[paths.preview] = png_bytes(
+            preview(result, size_px=args.preview_size, lighting=args.preview_lighting,
+                    views=[v.strip() for v in args.preview_views.split(",")]), paths.preview)
     if paths.atlas is not None:
-        save_png(paths.atlas, atlas_image(result, size_px=args.atlas_image_size))
-        written.append(paths.atlas)
-    result.report["outputs"] = [str(p) for p in written] + ([str(paths.report)] if paths.report else [])
+        files[paths.atlas] = png_bytes(atlas_image(result, size_px=args.atlas_image_size), paths.atlas)
+    for p, data in files.items():
+        outs.write_bytes(p, data)
+    return list(files)
+
+
+def _write(result: Any, paths: _Outputs, args: argparse.Namespace, outs: OutputSet, t0: float, *,
+           write_all: bool) -> list[Path]:
+    """Stage the outputs (all, or only the report) and commit them together."""
+    staged = _stage_outputs(result, paths, args, outs) if write_all else []
+    result.report["outputs"] = [str(p) for p in staged] + ([str(paths.report)] if paths.report else [])
     result.report["timings"]["cli_total_s"] = time.perf_counter() - t0
     if paths.report is not None:
-        with atomic_write(paths.report) as fh:
-            json.dump(result.report, fh, indent=1)
-    return written
+        outs.write_bytes(paths.report, (json.dumps(result.report, indent=1) + "\n").encode("utf-8"))
+    return outs.commit()
 
 
 def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
@@ -254,7 +293,7 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
           f"({rep['charts_input']} before cuts and splits), alpha {alpha}; "
           f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}% "
           f"of {atlas['texture_size_px']} px at {atlas.get('texel_density', 0):.4g} px/unit, "
-          f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written)}")
+          f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written) or 'nothing written'}")
     print(f"uvbake: {certificate_summary(rep['charts'])}")
     for w in (rep.get("repair") or {}).get("warnings", []):
         print(f"uvbake: warning: {w}", file=sys.stderr)
@@ -280,16 +319,30 @@ def run(args: argparse.Namespace) -> int:
     """``uvbake [unwrap] MESH ...``: unwrap, bake, write; the exit status (1 when the atlas is not valid)."""
     t0 = time.perf_counter()
     paths = _outputs(args)
-    result = _solve(args, paths.bake_mode)
-    written = _write(result, paths, args, t0)
-    rep = result.report
+    with OutputSet(_targets(paths), inputs=[args.mesh], force=args.force) as outs:   # before any work
+        result = _solve(args, paths.bake_mode)
+        rep = result.report
+        disagree = bool(args.cross_check and not rep["cross_check"]["agree"])
+        invalid = not rep["valid"] and not args.paper
+        written = _write(result, paths, args, outs, t0, write_all=not (invalid or disagree) or args.keep_invalid)
     if not args.quiet:
         _summary(rep, args.alpha, written)
-    if args.cross_check and not rep["cross_check"]["agree"]:
-        print(f"uvbake: failed: the backends disagree: {rep['cross_check']['message']}", file=sys.stderr)
-        return 1
-    if not rep["valid"] and not args.paper:
-        print("uvbake: failed: the atlas still has flipped or overlapping triangles (see the report)",
-              file=sys.stderr)
-        return 1
-    return 0
+    if not (invalid or disagree):
+        return 0
+    if args.keep_invalid:
+        kept = " (written anyway: --keep-invalid)"
+    else:
+        kept = (f"; wrote only the report {paths.report}" if paths.report else "; nothing was written") + \
+            " (pass --keep-invalid to write the outputs anyway)"
+    if disagree:
+        print(f"uvbake: failed: the backends disagree: {rep['cross_check']['message']}{kept}", file=sys.stderr)
+    else:
+        print(f"uvbake: failed: the atlas is not valid ({_what_is_wrong(rep)}){kept}", file=sys.stderr)
+    return 1
+
+
+def _what_is_wrong(rep: dict[str, Any]) -> str:
+    verdict = rep["atlas"]["validation"]
+    counts = (verdict["n_flipped"] - len(verdict["degenerate"]), len(verdict["degenerate"]), verdict["n_overlaps"])
+    words = ("flipped", "degenerate", "overlapping pairs")
+    return ", ".join(f"{n} {w}" for n, w in zip(counts, words) if n) or "see the report"

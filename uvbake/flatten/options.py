@@ -23,6 +23,15 @@ BACKENDS = ("lm", "lbfgs")
 CONTINUATION_ALPHA = 0.1
 
 
+def _whole(x: Any) -> bool:
+    """An integer, or a float with an integer value (as read from CSV or JSON); never a bool or a str."""
+    if isinstance(x, bool):
+        return False
+    if isinstance(x, (float, np.floating)):
+        return bool(np.isfinite(x) and float(x).is_integer())
+    return isinstance(x, (int, np.integer))
+
+
 def _choices(values: tuple[str, ...]) -> str:
     return ", ".join(repr(v) for v in values)
 
@@ -69,7 +78,7 @@ class SolveOptions:
     def __post_init__(self) -> None:
         try:
             alpha = float(self.alpha)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise InputError(f"alpha={self.alpha!r} is not a number; pass a weight between 0 and 1") from None
         if not (0.0 <= alpha <= 1.0):
             raise InputError(f"alpha={self.alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) "
@@ -79,10 +88,15 @@ class SolveOptions:
             raise InputError(f"init={self.init!r} is not one of {_choices(INITS)}")
         if self.backend not in BACKENDS:
             raise InputError(f"backend={self.backend!r} is not one of {_choices(BACKENDS)}")
-        if not (isinstance(self.tol, numbers.Real) and np.isfinite(self.tol) and self.tol > 0):
+        if not (isinstance(self.tol, numbers.Real) and not isinstance(self.tol, bool) and self.tol > 0
+                and np.isfinite(float(min(self.tol, 1e300)))):      # min: ints too large for a float
             raise InputError(f"tol={self.tol!r} must be a positive number (the scale-free gradient norm to reach)")
-        if not isinstance(self.max_iter, numbers.Real) or int(self.max_iter) != self.max_iter or self.max_iter < 0:
+        if not _whole(self.max_iter) or self.max_iter < 0:
             raise InputError(f"max_iter={self.max_iter!r} must be a non-negative integer")
+        object.__setattr__(self, "max_iter", int(self.max_iter))
+        if not _whole(self.seed) or not 0 <= self.seed < 2**32:
+            raise InputError(f"seed={self.seed!r} must be an integer from 0 to 2**32 - 1 (the random start's seed)")
+        object.__setattr__(self, "seed", int(self.seed))
         if self.linear_solver not in LINEAR_SOLVERS:
             raise InputError(f"linear_solver={self.linear_solver!r} is not one of {_choices(LINEAR_SOLVERS)}")
 

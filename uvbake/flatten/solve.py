@@ -30,9 +30,10 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy, optimal_scale
-from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions
+from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
 from uvbake.flatten.solvers.linalg import cholmod_available
@@ -104,6 +105,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     Does not touch BLAS thread limits (see :func:`limit_blas_threads`).
     """
     t0 = time.perf_counter()
+    check_cancelled()
     V, F, name = _chart_arrays(chart)
     check_chart(V, F, name=name)
     V = np.asarray(V, dtype=np.float64)
@@ -246,6 +248,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
     options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
                            linear_solver=linear_solver, continuation=continuation, injective=injective,
                            certificate=certificate)
+    if callback is not None and not callable(callback):
+        raise InputError(f"callback={callback!r} is not callable; pass a function or None")
     with _one_blas_thread():
         return solve_chart((V, F, name), options, uv0, callback)
 
@@ -284,7 +288,9 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
     items = [_chart_arrays(c, i) for i, c in enumerate(charts)]
     if not items:
         return []
-    workers = workers or min(os.cpu_count() or 1, len(items))
+    if workers is not None and (not _whole(workers) or workers < 1):
+        raise InputError(f"workers={workers!r} must be a positive integer (threads solving charts)")
+    workers = int(workers or min(os.cpu_count() or 1, len(items)))
     results: list[ParamResult | None] = [None] * len(items)
     done = 0
 

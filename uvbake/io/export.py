@@ -14,8 +14,8 @@ seam is one ``v`` with several ``vt``. glTF has one UV per vertex, so the GLB sp
 distinct (vertex, UV) pair; corners of one vertex inside one chart stay shared.
 
 Atomicity: every file is first written under a temporary name in the target folder; only when all
-of them are complete are they renamed into place. A failure leaves no new files and every existing
-file untouched. (Renames are atomic one at a time; the set of renames is not.)
+of them are complete are they renamed into place (:class:`uvbake.io.atomic.OutputSet`). A failure
+leaves no new files and every existing file untouched.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from uvbake.errors import InputError
-from uvbake.io.atomic import atomic_write_bytes, staged
+from uvbake.io.atomic import OutputSet, atomic_write_bytes
 from uvbake.io.gltf import _load_glb, glb_bytes
 from uvbake.io.obj import load_obj_uv, save_obj
 
@@ -58,17 +58,37 @@ def save_textured(path, V, F, corner_uv, image, *, vertex_colors=None, name="uvb
     list of Path
         The files written (OBJ: the .obj, .mtl and .png; GLB: the .glb).
     """
+    files = textured_files(path, V, F, corner_uv, image, vertex_colors=vertex_colors, name=name)
+    with OutputSet(list(files)) as outs:
+        for p, data in files.items():
+            outs.write_bytes(p, data)
+        outs.commit()
+    return list(files)
+
+
+def textured_files(path, V, F, corner_uv, image, *, vertex_colors=None, name="uvbake") -> dict:
+    """The files of a textured mesh as ``{Path: bytes}`` (main file first), without writing them.
+
+    Same parameters as :func:`save_textured`; a caller writing several outputs together passes
+    these to one :class:`uvbake.io.atomic.OutputSet`.
+    """
     path = Path(path)
     ext = path.suffix.lower()
     if ext not in TEXTURED_EXTENSIONS:
         raise InputError(f"{path}: unknown textured-mesh format {path.suffix!r}; use .obj or .glb")
-    if not path.parent.is_dir():
-        raise InputError(f"{path}: folder {path.parent} does not exist; create it first")
     V, F, corner_uv, image, vertex_colors = _check(path, V, F, corner_uv, image, vertex_colors)
     name = "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name)) or "uvbake"
     if ext == ".obj":
-        return _save_obj(path, V, F, corner_uv, image, vertex_colors, name)
-    return _save_glb(path, V, F, corner_uv, image, vertex_colors, name)
+        return _obj_files(path, V, F, corner_uv, image, vertex_colors, name)
+    return {path: glb_bytes(V, F, corner_uv, _png_bytes(image), vertex_colors=vertex_colors, name=name)}
+
+
+def textured_paths(path) -> list:
+    """The files :func:`save_textured` writes for ``path`` (OBJ: .obj, .mtl, .png; GLB: .glb)."""
+    path = Path(path)
+    if path.suffix.lower() == ".obj":
+        return [path, path.with_suffix(".mtl"), path.with_suffix(".png")]
+    return [path]
 
 
 def save_png(path, image) -> Path:
@@ -164,6 +184,11 @@ def _check_image(path, image) -> np.ndarray:
     return np.ascontiguousarray(image)
 
 
+def png_bytes(image, name="image") -> bytes:
+    """A texture (see :func:`save_png`) encoded as PNG, for writers that stage their own files."""
+    return _png_bytes(_check_image(name, image))
+
+
 def _png_bytes(image: np.ndarray) -> bytes:
     """Lossless PNG encoding of an (H,W,3|4) uint8 image."""
     from PIL import Image
@@ -177,27 +202,12 @@ def _png_bytes(image: np.ndarray) -> bytes:
 # OBJ + MTL + PNG
 
 
-def _save_obj(path, V, F, corner_uv, image, vertex_colors, name):
+def _obj_files(path, V, F, corner_uv, image, vertex_colors, name):
     mtl_path, png_path = path.with_suffix(".mtl"), path.with_suffix(".png")
     uv, uv_faces = np.unique(corner_uv.reshape(-1, 2), axis=0, return_inverse=True)
     uv_faces = uv_faces.reshape(-1, 3)
     mtl = (f"# written by uvbake\nnewmtl {name}\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1\n"
            f"map_Kd {png_path.name}\n")
-    finals = [png_path, mtl_path, path]
-    with staged(finals) as (png_tmp, mtl_tmp, obj_tmp):
-        atomic_write_bytes(png_tmp, _png_bytes(image))
-        atomic_write_bytes(mtl_tmp, mtl.encode("utf-8"))
-        save_obj(obj_tmp, V, F, uv=uv, uv_faces=uv_faces, vertex_colors=vertex_colors,
-                 mtllib=mtl_path.name, material=name)
-    return [path, mtl_path, png_path]
-
-
-# --------------------------------------------------------------------------------------------------
-# GLB
-
-
-def _save_glb(path, V, F, corner_uv, image, vertex_colors, name):
-    data = glb_bytes(V, F, corner_uv, _png_bytes(image), vertex_colors=vertex_colors, name=name)
-    with staged([path]) as (tmp,):
-        atomic_write_bytes(tmp, data)
-    return [path]
+    obj = save_obj(path, V, F, uv=uv, uv_faces=uv_faces, vertex_colors=vertex_colors,
+                   mtllib=mtl_path.name, material=name, as_text=True)
+    return {path: obj.encode("utf-8"), mtl_path: mtl.encode("utf-8"), png_path: _png_bytes(image)}

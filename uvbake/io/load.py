@@ -36,7 +36,7 @@ import numpy as np
 from uvbake.errors import InputError
 from uvbake.io.meshdata import MeshData, _check_labels, _make
 from uvbake.io.obj import load_obj_uv
-from uvbake.io.ply import _ply_face_property_names, read_ply_elements
+from uvbake.io.ply import BOM, _ply_face_property_names, check_ply_complete, read_ply_elements
 
 #: Face property names read as per-face segment labels, first found wins.
 LABEL_NAMES = ("segment", "label", "segment_id", "chart", "chart_id", "region")
@@ -114,11 +114,27 @@ def _load_path(path: Path) -> MeshData:
     if simple is not None:
         return simple
 
+    if ext == ".ply":
+        check_ply_complete(path, name)
+    elif ext == ".off":
+        _check_off_complete(path, name)
+
     import trimesh
 
+    from uvbake.cancel import check_cancelled
+
+    check_cancelled()             # trimesh's import swallows KeyboardInterrupt in optional imports
     kwargs: dict[str, Any] = {"fix_texture": False} if ext == ".ply" else {}
     try:
-        loaded = trimesh.load(name, process=False, **kwargs)
+        with open(path, "rb") as fh:
+            bom = fh.read(len(BOM)) == BOM
+        if bom:   # a UTF-8 byte-order mark (Windows tools) is not part of the format
+            import io
+
+            loaded = trimesh.load(io.BytesIO(path.read_bytes()[len(BOM):]), file_type=ext[1:],
+                                  process=False, **kwargs)
+        else:
+            loaded = trimesh.load(name, process=False, **kwargs)
     except Exception as exc:  # trimesh raises anything from KeyError to struct.error
         if ext == ".ply":  # e.g. binary PLY with polygons of mixed sizes
             try:
@@ -145,6 +161,25 @@ def _load_path(path: Path) -> MeshData:
     if ext == ".stl":
         mesh = _merge_exact_duplicates(mesh)
     return mesh
+
+
+def _check_off_complete(path: Path, name: str) -> None:
+    """Raise InputError if an OFF file holds fewer vertex and face lines than its counts declare."""
+    data = path.read_bytes()
+    if data.startswith(BOM):
+        data = data[len(BOM):]
+    rows = [line.split(b"#", 1)[0].split() for line in data.split(b"\n")]
+    rows = [r for r in rows if r]
+    if not rows or not rows[0][0].upper().endswith(b"OFF"):
+        return                                    # not ours to judge: the reader reports it
+    counts, body = (rows[0][1:], rows[1:]) if len(rows[0]) > 1 else (rows[1] if len(rows) > 1 else [], rows[2:])
+    try:
+        nv, nf = int(counts[0]), int(counts[1])
+    except (IndexError, ValueError):
+        return
+    if len(body) < nv + nf:
+        raise InputError(f"{name}: cannot read as OFF: the header declares {nv} vertices and {nf} faces but the file holds only "
+                         f"{len(body)} data lines; the file is truncated, export or copy it again")
 
 
 def _from_arrays(source: tuple) -> MeshData:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,8 @@ def load_obj_uv(path):
     if path.stat().st_size == 0:
         raise InputError(f"{name}: file is empty (0 bytes); export the mesh again")
     try:
-        with open(path, encoding="utf-8", errors="strict") as f:
+        # utf-8-sig: a byte-order mark (Windows tools) is not part of the first line
+        with open(path, encoding="utf-8-sig", errors="strict") as f:
             verts, colors, uvs, tris, tri_uv, all_uv = _parse_obj(f)
     except (ValueError, UnicodeDecodeError) as exc:
         reason = " ".join(str(exc).split())[:120]
@@ -75,7 +77,10 @@ def _parse_obj(lines):
                 raise ValueError(f"line {line_no}: a 'v' line needs 3 coordinates")
             colors.append([float(t) for t in parts[4:7]] if len(parts) >= 7 else None)
         elif tag == "vt":
-            uvs.append([float(t) for t in parts[1:3]])
+            uv = [float(t) for t in parts[1:3]]
+            if not uv:
+                raise ValueError(f"line {line_no}: a 'vt' line needs a coordinate")
+            uvs.append(uv + [0.0] * (2 - len(uv)))      # 'vt u' means v = 0 (OBJ spec)
         elif tag == "f":
             all_uv = _parse_face(parts, line_no, len(verts), len(uvs), tris, tri_uv) and all_uv
     return verts, colors, uvs, tris, tri_uv, all_uv
@@ -103,7 +108,7 @@ def _obj_index(token: str, count: int) -> int:
 
 
 def save_obj(path, V, F, *, uv=None, uv_faces=None, vertex_colors=None, mtllib=None,
-             material=None) -> None:
+             material=None, as_text=False):
     """Write a triangle mesh as OBJ, atomically and with full float precision.
 
     Parameters
@@ -119,6 +124,9 @@ def save_obj(path, V, F, *, uv=None, uv_faces=None, vertex_colors=None, mtllib=N
         Written as ``v x y z r g b``.
     mtllib, material : str, optional
         Written as ``mtllib <mtllib>`` and ``usemtl <material>`` lines.
+
+    as_text : bool
+        Return the file's text instead of writing it (``path`` only names it in messages).
 
     Numbers are written with ``%.17g``, so reading the file back gives bit-identical V and UVs.
     """
@@ -138,21 +146,31 @@ def save_obj(path, V, F, *, uv=None, uv_faces=None, vertex_colors=None, mtllib=N
             raise InputError(f"{name}: vertex_colors must be (n,3)={V.shape}, got "
                              f"{vertex_colors.shape}; pass one RGB colour per vertex")
 
+    text = _obj_text(V, F, uv, uv_faces, vertex_colors, mtllib, material)
+    if as_text:
+        return text
     with atomic_write(path, "w") as f:
-        f.write("# written by uvbake\n")
-        if mtllib:
-            f.write(f"mtllib {mtllib}\n")
-        rows = V if vertex_colors is None else np.hstack([V, vertex_colors])
-        _write_rows(f, "v", rows, "%.17g")
-        if uv is not None:
-            _write_rows(f, "vt", uv, "%.17g")
-        if material:
-            f.write(f"usemtl {material}\n")
-        if uv is None:
-            _write_rows(f, "f", F + 1, "%d")
-        else:
-            corners = np.stack([F + 1, uv_faces + 1], axis=-1).reshape(len(F), 6)
-            _write_rows(f, "f", corners, "%d/%d")
+        f.write(text)
+    return None
+
+
+def _obj_text(V, F, uv, uv_faces, vertex_colors, mtllib, material) -> str:
+    f = io.StringIO()
+    f.write("# written by uvbake\n")
+    if mtllib:
+        f.write(f"mtllib {mtllib}\n")
+    rows = V if vertex_colors is None else np.hstack([V, vertex_colors])
+    _write_rows(f, "v", rows, "%.17g")
+    if uv is not None:
+        _write_rows(f, "vt", uv, "%.17g")
+    if material:
+        f.write(f"usemtl {material}\n")
+    if uv is None:
+        _write_rows(f, "f", F + 1, "%d")
+    else:
+        corners = np.stack([F + 1, uv_faces + 1], axis=-1).reshape(len(F), 6)
+        _write_rows(f, "f", corners, "%d/%d")
+    return f.getvalue()
 
 
 def _check_uv(name, V, F, uv, uv_faces):

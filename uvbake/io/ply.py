@@ -6,6 +6,11 @@ from typing import Any
 
 import numpy as np
 
+from uvbake.errors import InputError
+
+#: UTF-8 byte-order mark, which some Windows tools write at the start of text files.
+BOM = b"\xef\xbb\xbf"
+
 _PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
     "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
@@ -20,12 +25,22 @@ def read_ply_elements(path) -> dict:
     the same length, else a list of arrays. This is uvbake's own reader, used when trimesh cannot
     read a file (binary PLY with mixed polygon sizes) or drops a face property.
     """
+    fmt, elements, body = _ply_header(path)
+    if fmt == "ascii":
+        return _ply_ascii(body, elements)
+    return _ply_binary(body, elements, "<" if fmt == "binary_little_endian" else ">")
+
+
+def _ply_header(path):
+    """``(format, [(element, count, [(property, dtype, list item dtype or None)]), body bytes)``."""
     with open(path, "rb") as f:
         lines: list[str] = []
         while True:
             raw = f.readline()
             if not raw:
                 raise ValueError("no end_header line")
+            if not lines and raw.startswith(BOM):
+                raw = raw[len(BOM):]
             line = raw.decode("ascii", "replace").strip()
             lines.append(line)
             if line == "end_header":
@@ -48,9 +63,30 @@ def read_ply_elements(path) -> dict:
                 elements[-1][2].append((parts[2], _PLY_TYPES[parts[1]], None))
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise ValueError(f"unknown format {fmt!r}")
+    return fmt, elements, body
+
+
+def check_ply_complete(path, name) -> None:
+    """Raise InputError if the file holds fewer elements than its header declares (truncated)."""
+    try:
+        fmt, elements, body = _ply_header(path)
+    except (ValueError, KeyError, IndexError):
+        return                                 # not ours to judge: the reader reports it
+    declared = ", ".join(f"{count} {el}" for el, count, _ in elements)
+    fix = "the file is truncated; export or copy it again"
     if fmt == "ascii":
-        return _ply_ascii(body, elements)
-    return _ply_binary(body, elements, "<" if fmt == "binary_little_endian" else ">")
+        rows = sum(1 for line in body.split(b"\n") if line.strip())
+        if rows < sum(count for _, count, _ in elements):
+            raise InputError(f"{name}: cannot read as PLY: the header declares {declared} but the file holds only {rows} "
+                             f"data lines; {fix}")
+        return
+    endian = "<" if fmt == "binary_little_endian" else ">"
+    try:
+        _ply_binary(body, elements, endian)
+    except (ValueError, IndexError) as exc:
+        raise InputError(f"{name}: cannot read as PLY: the header declares {declared} but the data ends early "
+                         f"({exc}); {fix}") \
+            from None
 
 
 def _ply_ascii(body: bytes, elements) -> dict:

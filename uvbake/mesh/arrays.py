@@ -50,9 +50,12 @@ def unit_scale(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, float]:
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
+    # a power of two first (exact): edge lengths neither overflow nor underflow at any finite scale
+    k = unit_exponent(V)
+    V = np.ldexp(V, -k)
     edges = V[F[:, [1, 2, 0]]] - V[F]
     unit = float(np.mean(np.linalg.norm(edges, axis=2)))
-    return (V - V.mean(axis=0)) / unit, unit
+    return (V - V.mean(axis=0)) / unit, float(np.ldexp(unit, k))
 
 
 def triangle_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -87,3 +90,16 @@ def rigid_align(P: np.ndarray, Q: np.ndarray, X: np.ndarray | None = None
     d = np.sign(np.linalg.det(U @ Wt)) or 1.0          # no reflection
     Rm = U @ np.diag([1.0, d]) @ Wt                      # acts on row vectors: (x - cp) @ Rm
     return Rm.T, cq - cp @ Rm, (X - cp) @ Rm + cq
+
+
+def unit_exponent(V) -> int:
+    """``k`` with ``max|V| * 2**-k`` in [0.5, 1), 0 for an empty, zero or non-finite V.
+
+    Scaling by a power of two (``np.ldexp(V, -k)``) is exact, so meshes at any finite scale
+    (1e300 or 1e-300) can be worked on near unit size without losing a bit, and scaled back.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    m = float(np.max(np.abs(V))) if V.size else 0.0
+    if m == 0.0 or not np.isfinite(m):
+        return 0
+    return int(np.frexp(m)[1])

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from uvbake.errors import ChartError, InputError, NotDiskError
-from uvbake.mesh.arrays import _list, check_arrays
+from uvbake.mesh.arrays import _list, check_arrays, unit_exponent
 from uvbake.mesh.topology import face_adjacency, nonmanifold_vertices, topology
 
 
@@ -48,6 +48,7 @@ def check_chart(V, F, *, name="chart 0"):
     components, no boundary (closed), handles (genus > 0). Returns the chart's :class:`Topology`.
     """
     V, F = check_arrays(V, F, where=name)
+    V = np.ldexp(V, -unit_exponent(V))       # exact: areas neither overflow nor underflow at any scale
     n = len(V)
     rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
     X = V[F]

@@ -406,6 +406,9 @@ def _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol, weld=True):
             small = size < thr
             small[np.argmax(size)] = False
             drop = small[comp]
+            if drop.sum() > SPECK_SHARE * mm:
+                # not specks but the mesh itself (e.g. a triangle soup): keep every piece as a chart
+                drop[:] = False
             if drop.any():
                 actions.append({"kind": "drop_small_components", "count": int(small.sum()),
                                 "faces": int(drop.sum()), "examples": _ex(fidx[drop]),
@@ -437,6 +440,10 @@ def _nonmanifold_full_detach(F, n):
 
 
 # ------------------------------------------------------------------------------------------ public
+#: Small pieces are dropped as specks only while together they hold at most this share of the triangles.
+SPECK_SHARE = 0.01
+
+
 def repair(V, F, *, min_component_faces=None, weld_tol=1e-9, weld=None):
     """Repair a triangle mesh so its pieces can become charts (see the module notes for the steps).
 
@@ -445,7 +452,8 @@ def repair(V, F, *, min_component_faces=None, weld_tol=1e-9, weld=None):
     V : (n,3) float array           vertex positions (NaN/inf allowed: their triangles are dropped)
     F : (m,3) int array             triangles; indices must lie in [0, n)
     min_component_faces : int, optional
-        Pieces with fewer triangles are dropped as specks (never the largest piece). Default
+        Pieces with fewer triangles are dropped as specks (never the largest piece, and only while
+        they hold at most ``SPECK_SHARE`` (1%) of the triangles: more is the mesh, not noise). Default
         ``min(10, m // 1000)``: nothing on meshes under 2,000 triangles, 10 from 10,000 on.
     weld_tol : float
         Boundary vertices closer than ``weld_tol`` x mean edge length count as one position

@@ -73,7 +73,8 @@ def _edge_components(vid, twin):
     return np.unique(labels, return_inverse=True)[1].astype(np.int64).reshape(m)
 
 
-def _group_pairs(group, item, m, group_filter=None, unique=True, budget=None, with_groups=False):
+def _group_pairs(group, item, m, group_filter=None, unique=True, budget=None, with_groups=False,
+                 max_keys=None):
     """Keys ``i * m + j`` (i < j) of the pairs of items that share a group, chunked to bound memory.
 
     Parameters
@@ -88,6 +89,8 @@ def _group_pairs(group, item, m, group_filter=None, unique=True, budget=None, wi
         Stop after about this many raw pairs (before filtering).
     with_groups : bool
         Also return the group of every key (then keys are neither sorted nor de-duplicated).
+    max_keys : int, optional
+        Stop once this many pairs passed the filter (the rest of the enumeration is skipped).
 
     Returns
     -------
@@ -116,8 +119,11 @@ def _group_pairs(group, item, m, group_filter=None, unique=True, budget=None, wi
     groups = [np.zeros(0, np.int64)]
     complete = budget is None or csum[-1] <= budget
     limit = csum[-1] if complete else max(int(budget), 0)
-    s = 0
+    s, kept = 0, 0
     while s < n:
+        if max_keys is not None and kept >= max_keys:
+            complete = False
+            break
         base = csum[s - 1] if s else 0
         if base >= limit and not complete:
             break
@@ -131,6 +137,7 @@ def _group_pairs(group, item, m, group_filter=None, unique=True, budget=None, wi
         if group_filter is not None:
             ok &= group_filter(i, j, g[a])
         k = i[ok] * m + j[ok]
+        kept += len(k)
         if with_groups:
             groups.append(g[a][ok])
         keys.append(_sorted_unique(k) if unique and not with_groups else k)
@@ -157,11 +164,14 @@ def _sorted_unique(a):
     return a[keep]
 
 
-def _bbox_pairs(corners, live, disjoint=None):
-    """Pairs (i<j) of live faces whose bounding boxes overlap with positive area.
+def _bbox_pairs(corners, live, disjoint=None, confirm=None, max_pairs=None):
+    """Pairs (i<j) of live faces whose bounding boxes overlap with positive area (and, with
+    ``confirm``, that it confirms), enumerated in bounded chunks.
 
     A uniform grid hashes every box into the cells it touches; a pair is kept only in the cell that
-    holds the lower-left corner of the boxes' intersection, so no pair is produced twice.
+    holds the lower-left corner of the boxes' intersection, so no pair is produced twice. With
+    ``confirm`` (the exact overlap test) candidates are decided chunk by chunk and never stored, so
+    memory stays bounded however many boxes overlap, and no candidate is ever left undecided.
 
     Parameters
     ----------
@@ -170,24 +180,30 @@ def _bbox_pairs(corners, live, disjoint=None):
         Faces that take part.
     disjoint : callable, optional
         ``disjoint(i, j) -> (k,) bool``: pairs known to be disjoint, dropped.
+    confirm : callable, optional
+        ``confirm(i, j) -> (k,) bool``: pairs to keep among the remaining candidates.
+    max_pairs : int, optional
+        Stop after about this many kept pairs (the layout is then known to be invalid).
 
     Returns
     -------
     pairs : (p,2) int64
     complete : bool
-        False when the work budget stopped the enumeration.
+        False when ``max_pairs`` stopped the enumeration.
+    n_candidates : int
+        Pairs handed to ``confirm`` (or kept, without it).
     """
     m = len(corners)
     faces = np.flatnonzero(live)
     if len(faces) < 2:
-        return np.zeros((0, 2), np.int64), True
+        return np.zeros((0, 2), np.int64), True, 0
     bmin = corners.min(axis=1)
     bmax = corners.max(axis=1)
     ext = (bmax - bmin)[faces].max(axis=1)
     lo = bmin[faces].min(axis=0)
     span = float((bmax[faces].max(axis=0) - lo).max())
     if span == 0.0:
-        return np.zeros((0, 2), np.int64), True
+        return np.zeros((0, 2), np.int64), True, 0
     cell = max(float(np.median(ext)), span / 65536.0)
     while True:
         c0 = np.floor((bmin[faces] - lo) / cell).astype(np.int64)
@@ -207,6 +223,7 @@ def _bbox_pairs(corners, live, disjoint=None):
     cx[faces], cy[faces] = c0[:, 0], c0[:, 1]
     x0, y0 = np.ascontiguousarray(bmin.T)
     x1, y1 = np.ascontiguousarray(bmax.T)
+    n_cand = [0]
 
     def keep(i, j, g):
         # home cell = cell of the intersection's lower-left corner (floor is monotone)
@@ -219,11 +236,15 @@ def _bbox_pairs(corners, live, disjoint=None):
         if disjoint is not None:
             s_idx = np.flatnonzero(strict)
             strict[s_idx[disjoint(a[s_idx], b[s_idx])]] = False
+        s_idx = np.flatnonzero(strict)
+        n_cand[0] += len(s_idx)
+        if confirm is not None and len(s_idx):
+            strict[s_idx[~confirm(a[s_idx], b[s_idx])]] = False
         ok[idx] = strict
         return ok
 
-    keys, complete = _group_pairs(key, f, m, group_filter=keep, unique=False, budget=_raw_budget(m))
-    return np.stack([keys // m, keys % m], axis=1), complete
+    keys, complete = _group_pairs(key, f, m, group_filter=keep, unique=False, max_keys=max_pairs)
+    return np.stack([keys // m, keys % m], axis=1), complete, n_cand[0]
 
 
 def _topology_filter(corners, vid, sign, twin, dup):

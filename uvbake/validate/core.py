@@ -42,7 +42,6 @@ from uvbake.validate.candidates import (
     _bbox_pairs,
     _edge_components,
     _half_edges,
-    _raw_budget,
     _row_ids,
     _sorted_unique,
     _topology_filter,
@@ -59,6 +58,8 @@ from uvbake.validate.report import ChartVerdict, ValidationReport
 __all__ = ["validate", "ValidationReport", "ChartVerdict"]
 
 _MAX_ABS_UV = 1e100
+#: A chart whose UV extent is at most this share of the layout's is collapsed (no texel at 16384 px).
+COLLAPSED = 1e-9
 _RES_RANGE = (16, 16384)
 
 
@@ -140,8 +141,17 @@ def validate(
     area2 = (B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0])
     chart_area2 = np.bincount(chart, weights=area2, minlength=n_charts)
     chart_sign = np.where(chart_area2 >= 0, 1, -1).astype(np.int8)
-    flipped_mask = sign != chart_sign[chart]
     degenerate_mask = sign == 0
+    # a chart collapsed to (nearly) a point gets no texel at any resolution: all its faces are
+    # degenerate, and they take no part in overlap pairs (a quadratic, meaningless enumeration)
+    by_chart = np.argsort(chart, kind="stable")
+    starts = np.searchsorted(chart[by_chart], np.arange(n_charts))
+    cmin = np.minimum.reduceat(corners.min(axis=1)[by_chart], starts)
+    cmax = np.maximum.reduceat(corners.max(axis=1)[by_chart], starts)
+    span = float((cmax.max(axis=0) - cmin.min(axis=0)).max())
+    collapsed = (cmax - cmin).max(axis=1) <= COLLAPSED * span
+    degenerate_mask |= collapsed[chart]
+    flipped_mask = (sign != chart_sign[chart]) | degenerate_mask
     t = lap("orientation", t)
 
     # ---- raster pass ----------------------------------------------------------------------------
@@ -154,25 +164,24 @@ def validate(
 
     # ---- exact pass -----------------------------------------------------------------------------
     live = ~degenerate_mask
-    cand, bbox_complete = _bbox_pairs(corners, live, _topology_filter(corners, vid, sign, twin, dup))
-    if not bbox_complete:
-        notes.append(f"candidate pairs truncated after {_raw_budget(m)} overlapping bounding boxes")
-    if len(raster_keys):
-        ra, rb = raster_keys // m, raster_keys % m
-        rk = raster_keys[live[ra] & live[rb]]
-        cand_keys = _sorted_unique(np.concatenate([cand[:, 0] * m + cand[:, 1], rk]))
-        cand = np.stack([cand_keys // m, cand_keys % m], axis=1)
-    t = lap("candidates", t)
     ccw = corners.copy()
     neg = sign < 0
     ccw[neg, 1], ccw[neg, 2] = corners[neg, 2], corners[neg, 1]
-    hits = []
-    for s in range(0, len(cand), budgets.CHUNK // 4):
-        c = cand[s : s + budgets.CHUNK // 4]
-        over, k = _interiors_overlap(ccw[c[:, 0]], ccw[c[:, 1]])
-        n_exact += k
-        hits.append(c[over])
-    pairs = np.concatenate(hits) if hits else np.zeros((0, 2), np.int64)
+    n_exact_pairs = [0]
+
+    def confirm(i, j):          # the exact test, applied chunk by chunk as candidates are found
+        over, k = _interiors_overlap(ccw[i], ccw[j])
+        n_exact_pairs[0] += k
+        return over
+
+    pairs, bbox_complete, n_cand = _bbox_pairs(
+        corners, live, _topology_filter(corners, vid, sign, twin, dup), confirm=confirm,
+        max_pairs=budgets.MAX_OVERLAP_PAIRS)
+    n_exact += n_exact_pairs[0]
+    if not bbox_complete:
+        notes.append(f"listing stopped after {len(pairs)} overlapping pairs (the layout is invalid; "
+                     "the list is partial)")
+    t = lap("candidates", t)
     pairs = pairs.astype(np.int64).reshape(-1, 2)
     keys = pairs[:, 0] * m + pairs[:, 1]
     order = np.argsort(keys)
@@ -215,10 +224,10 @@ def validate(
         for i in range(n_charts)
     ]
     complete = bool(bbox_complete and raster_complete)
-    if not complete:
-        notes.append("overlaps are massive; the lists of pairs are partial and the layout is not valid")
     report = ValidationReport(
-        valid=bool(complete and len(flipped) == 0 and len(counted) == 0),
+        # exact whatever the budgets: flips are all found and candidate pairs are all decided; a
+        # budget only shortens the list of confirmed pairs (then the layout is invalid for certain)
+        valid=bool(len(flipped) == 0 and len(counted) == 0 and bbox_complete),
         complete=complete,
         notes=notes,
         n_faces=int(m),
@@ -237,7 +246,7 @@ def validate(
         grid_shape=(rows, cols),
         origin=(float(origin[0]), float(origin[1])),
         pixel_size=float(pixel_size),
-        n_candidates=int(len(cand)),
+        n_candidates=int(n_cand),
         n_exact=int(n_exact),
         allow_subpixel=bool(allow_subpixel),
         time_s=0.0,

@@ -80,7 +80,9 @@ class ValidationReport:
     flipped : (k,) int64
         Faces whose orientation is opposite to their chart's or zero (degenerate ones included).
     degenerate : (d,) int64
-        Faces with exactly zero signed UV area (a subset of ``flipped``).
+        Faces with exactly zero signed UV area, or in a chart collapsed to (nearly) a point: its UV
+        extent at most ``uvbake.validate.core.COLLAPSED`` of the layout's (a subset of ``flipped``;
+        they take no part in overlap pairs).
     overlap_pairs : (p,2) int64
         Pairs ``i < j`` of faces whose open interiors intersect, sorted, unique.
     overlap_subpixel : (p,) bool
@@ -150,13 +152,13 @@ class ValidationReport:
         """One line: the verdict and its counts."""
         head = "valid" if self.valid else "INVALID"
         n_deg = len(self.degenerate)
-        deg = f" ({n_deg} degenerate)" if n_deg else ""
+        deg = f", {n_deg} degenerate (zero UV area or in a collapsed chart)" if n_deg else ""
         rows, cols = self.grid_shape
         if not self.complete:
             head += " (check stopped early: " + "; ".join(self.notes) + ")"
         return (
             f"{head}: {len(self.charts)} charts, {self.n_faces} triangles, "
-            f"{self.n_flipped} flipped{deg}, {self.n_overlaps} overlapping pairs "
+            f"{self.n_flipped - n_deg} flipped{deg}, {self.n_overlaps} overlapping pairs "
             f"({self.n_subpixel} sub-pixel at {cols}x{rows} px), "
             f"{100.0 * self.overlap_area_fraction:.4g}% of covered pixels overlap"
         )

@@ -42,6 +42,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from uvbake.cancel import check_cancelled, is_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.solvers.linalg import (
     NotPositiveDefinite,
@@ -138,6 +139,9 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
 
         def objective(y, grad):
             x = x_ref + T(y)
+            if is_cancelled():                       # SIGINT/SIGTERM: raised after nlopt returns
+                st["stop"] = Status.CALLBACK         # never reported: check_cancelled raises
+                raise nlopt.ForcedStop
             if st["ev"] >= max_eval:
                 st["stop"] = Status.MAX_EVAL
                 raise nlopt.ForcedStop
@@ -206,6 +210,7 @@ def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vecto
     while True:
         g_before = st["g"]
         reason = run(st["x"].copy())
+        check_cancelled()
         reasons.append(reason)
         if st["stop"] is not None or reason[0] == Status.MAX_EVAL:
             break

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
 from uvbake.flatten.solvers.result import SolveResult, Status
 
@@ -93,6 +94,7 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
     if not np.isfinite(f):
         stop = Status.NON_FINITE_START
     while it < max_iter and stop == Status.MAX_ITER:
+        check_cancelled()                            # SIGINT/SIGTERM: stop within one iteration
         if gnorm < tol and it == 0:
             # a start that is already stationary still gets the second-order test
             out = _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax, step_limit)
