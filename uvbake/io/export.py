@@ -27,8 +27,9 @@ import numpy as np
 
 from uvbake.errors import InputError
 from uvbake.io.atomic import atomic_write_bytes, staged
-from uvbake.io.gltf import _load_glb, glb_bytes
-from uvbake.io.obj import load_obj_uv, save_obj
+from uvbake.io.gltf import glb_bytes
+from uvbake.io.obj import save_obj
+from uvbake.io.uvread import read_uv
 
 #: Extensions save_textured writes.
 TEXTURED_EXTENSIONS = (".obj", ".glb")
@@ -107,13 +108,11 @@ def load_textured_uv(path):
     """
     path = Path(path)
     ext = path.suffix.lower()
-    if ext == ".obj":
-        mesh, uv, uv_faces = load_obj_uv(path)
-        if uv_faces is None:
+    if ext in TEXTURED_EXTENSIONS:
+        parts = read_uv(path)
+        if len(parts) != 1 or parts[0].corner_uv is None:
             raise InputError(f"{path}: has no texture coordinates on every face; export it again")
-        return mesh.V, mesh.F, uv[uv_faces]
-    if ext == ".glb":
-        return _load_glb(path)
+        return parts[0].V, parts[0].F, parts[0].corner_uv
     raise InputError(f"{path}: unknown textured-mesh format {path.suffix!r}; use .obj or .glb")
 
 
