@@ -21,6 +21,7 @@ file untouched. (Renames are atomic one at a time; the set of renames is not.)
 from __future__ import annotations
 
 import io as _io
+import os
 from pathlib import Path
 
 import numpy as np
@@ -95,7 +96,7 @@ def save_png(path, image) -> Path:
     return path
 
 
-def load_textured_uv(path):
+def load_textured_uv(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read back a textured mesh written by :func:`save_textured`.
 
     Returns

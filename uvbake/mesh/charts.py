@@ -11,11 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from uvbake.errors import ChartError, InputError, NotDiskError
 from uvbake.mesh.arrays import _list, check_arrays
-from uvbake.mesh.topology import face_adjacency, nonmanifold_vertices, topology
+from uvbake.mesh.topology import Topology, face_adjacency, nonmanifold_vertices, topology
 
 
 @dataclass
@@ -40,7 +41,7 @@ class Chart:
     name: str = "chart 0"
 
 
-def check_chart(V, F, *, name="chart 0"):
+def check_chart(V: ArrayLike, F: ArrayLike, *, name: str = "chart 0") -> Topology:
     """Raise a :class:`ChartError` unless (V, F) is one connected, manifold disk with holes.
 
     Checks, in order: degenerate triangles (repeated indices or zero area), unreferenced vertices,
@@ -98,7 +99,8 @@ def check_chart(V, F, *, name="chart 0"):
     return topo
 
 
-def split_charts(V, F, labels=None, *, check=True):
+def split_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
+                 check: bool = True) -> list[Chart]:
     """Split a mesh into charts: one per segment label and edge-connected component.
 
     Parameters
