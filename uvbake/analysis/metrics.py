@@ -275,7 +275,7 @@ def _areas_3d(V, F):
     return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
 
 
-def texel_share(V, F, corner_uv):
+def texel_share(V: np.ndarray, F: np.ndarray, corner_uv: ArrayLike) -> np.ndarray:
     """(m,) texel share of every triangle: its share of the UV area over its share of the 3D area.
 
     ``corner_uv`` is (m,3,2) (per-vertex (n,2) UVs are accepted too). Triangles with zero 3D area get
@@ -292,13 +292,13 @@ def texel_share(V, F, corner_uv):
     return np.where(a_3d > 0, s, 1.0)
 
 
-def area_below(V, F, share, threshold):
+def area_below(V: np.ndarray, F: np.ndarray, share: ArrayLike, threshold: float) -> float:
     """Share of the 3D surface area whose texel share is below ``threshold``."""
     a = _areas_3d(V, F)
     return float(a[np.asarray(share) < threshold].sum() / a.sum()) if a.sum() > 0 else 0.0
 
 
-def texel_summary(V, F, corner_uv):
+def texel_summary(V: np.ndarray, F: np.ndarray, corner_uv: ArrayLike) -> dict[str, float]:
     """The report's texel fields: least share and the area shares below 1/4 and 1/16 of fair."""
     s = texel_share(V, F, corner_uv)
     return dict(min_texel_share=float(s.min()) if len(s) else 1.0,
