@@ -21,10 +21,13 @@ Disagreement is loud: :func:`cross_check` and :func:`cross_check_charts` raise
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError, SolverError
 from uvbake.flatten.solvers.linalg import is_positive_definite
@@ -38,7 +41,7 @@ SADDLE_SHIFT = 1e-6
 class CrossCheckError(SolverError):
     """The two backends disagree; ``results`` holds every chart's :class:`CrossCheckResult`."""
 
-    def __init__(self, message, results=()):
+    def __init__(self, message: str, results: Iterable[CrossCheckResult] = ()) -> None:
         super().__init__(message)
         self.results = list(results)
 
@@ -78,13 +81,13 @@ class CrossCheckResult:
     agree: bool
     extra: dict = field(default_factory=dict)
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         extra = d.pop("extra")
         d.update(extra)
         return {k: (float(v) if isinstance(v, np.floating) else v) for k, v in d.items()}
 
-    def summary(self):
+    def summary(self) -> str:
         """One line: the verdict and the numbers behind it."""
         verdict = "agree" if self.agree else "DISAGREE"
         s = (f"{self.name}: backends {verdict} at alpha={self.alpha:g}: F* lm={self.energy_lm:.10g} "
@@ -98,7 +101,7 @@ class CrossCheckResult:
         return s
 
 
-def uv_diameter(uv):
+def uv_diameter(uv: ArrayLike) -> float:
     """Largest distance between two UVs (over the convex hull's vertices)."""
     uv = np.asarray(uv, dtype=np.float64)
     try:
@@ -113,7 +116,7 @@ def uv_diameter(uv):
     return float(np.sqrt(np.max(np.einsum("ijk,ijk->ij", d, d))))
 
 
-def is_local_minimum(V, F, uv, alpha):
+def is_local_minimum(V: np.ndarray, F: np.ndarray, uv: np.ndarray, alpha: float) -> bool | None:
     """True when the Hessian of F at ``uv`` is positive semi-definite up to the gauge (see module doc).
 
     None at alpha = 0 (F is then a convex quadratic: every stationary point is a minimum).
@@ -135,9 +138,10 @@ def _positive_definite(H, shift):
     return is_positive_definite(H + shift * sp.identity(H.shape[0], format="csc"))
 
 
-def cross_check(V, F, *, alpha=0.5, init="lscm", tol=1e-8, max_iter=1000, lbfgs_max_iter=None, seed=0,
-                rtol_energy=1e-6, rtol_uv=1e-4, raise_on_disagree=True, second_order=True,
-                name="chart 0"):
+def cross_check(V: np.ndarray, F: np.ndarray, *, alpha: float = 0.5, init: str = "lscm", tol: float = 1e-8,
+                max_iter: int = 1000, lbfgs_max_iter: int | None = None, seed: int = 0,
+                rtol_energy: float = 1e-6, rtol_uv: float = 1e-4, raise_on_disagree: bool = True,
+                second_order: bool = True, name: str = "chart 0") -> CrossCheckResult:
     """Solve one chart with both backends from the same start and compare the results.
 
     Parameters
@@ -210,23 +214,23 @@ class CrossCheckReport(dict):
     """Cross-check of every chart of a mesh: a JSON-ready dict (``agree``, ``message``, ``charts``)
     that also carries the :class:`CrossCheckResult` objects as ``results``."""
 
-    def __init__(self, results):
+    def __init__(self, results: Iterable[CrossCheckResult]) -> None:
         self.results = list(results)
         super().__init__(agree=all(r.agree for r in self.results), message=self.summary(),
                          charts=[r.to_dict() for r in self.results])
 
     @property
-    def agree(self):
+    def agree(self) -> bool:
         return all(r.agree for r in self.results)
 
     @property
-    def disagreeing(self):
+    def disagreeing(self) -> list[CrossCheckResult]:
         return [r for r in self.results if not r.agree]
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, Any]:
         return dict(self)
 
-    def summary(self):
+    def summary(self) -> str:
         bad = self.disagreeing
         if not bad:
             return f"backends agree on all {len(self.results)} charts"
@@ -234,7 +238,9 @@ class CrossCheckReport(dict):
                 + " | ".join(r.summary() for r in bad))
 
 
-def cross_check_charts(charts, results=None, *, raise_on_disagree=True, progress=None, **options):
+def cross_check_charts(charts: Iterable[Any], results: Sequence[Any] | None = None, *,
+                       raise_on_disagree: bool = True, progress: Callable[..., Any] | None = None,
+                       **options: Any) -> CrossCheckReport:
     """:func:`cross_check` on every chart (``Chart`` objects or (V, F) pairs), one report.
 
     Parameters

@@ -44,16 +44,18 @@ Definitions (the pipeline's JSON report and the README's tables):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from uvbake.flatten.energy import triangle_frames
 from uvbake.mesh.arrays import signed_areas
 
 
-def corners(uv, F):
+def corners(uv: ArrayLike, F: np.ndarray | None) -> np.ndarray:
     """Per-corner UVs (m,3,2) from per-vertex ``uv (n,2)`` or pass-through of per-corner ones."""
     uv = np.asarray(uv, dtype=np.float64)
     if uv.ndim == 3:
@@ -64,7 +66,7 @@ def corners(uv, F):
     return uv[F]
 
 
-def singular_values(V, F, uv):
+def singular_values(V: np.ndarray, F: np.ndarray | None, uv: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per-triangle Jacobian singular values and UV orientation.
 
     Returns
@@ -82,7 +84,7 @@ def singular_values(V, F, uv):
     return s[:, 0], s[:, 1], det, area
 
 
-def weighted_median(x, w):
+def weighted_median(x: ArrayLike, w: ArrayLike) -> float:
     """Weighted median (lower one when the cumulative weight hits exactly one half)."""
     x = np.asarray(x, dtype=np.float64)
     w = np.asarray(w, dtype=np.float64)
@@ -99,7 +101,8 @@ def _mean(w, x, ok):
     return float(np.sum(w[ok] * x[ok]) / np.sum(w[ok]))
 
 
-def distortion(V, F, uv, *, area_scale="median"):
+def distortion(V: np.ndarray, F: np.ndarray | None, uv: np.ndarray, *,
+               area_scale: str = "median") -> dict[str, Any]:
     """Angle and area distortion of a map (see the module docstring for the definitions).
 
     Parameters
@@ -137,14 +140,14 @@ def distortion(V, F, uv, *, area_scale="median"):
                 n_collapsed=n_collapsed, area_3d=float(area.sum()))
 
 
-def chart_distortion(V, F, uv):
+def chart_distortion(V: np.ndarray, F: np.ndarray | None, uv: np.ndarray) -> dict[str, Any]:
     """The pipeline report's distortion of one chart at true scale (``area_scale="none"``)."""
     d = distortion(V, F, uv, area_scale="none")
     return dict(angle_distortion_mean=d["angle_mean"], angle_distortion_max=d["angle_max"],
                 area_distortion_mean=d["area"], area_3d=d["area_3d"])
 
 
-def distortion_summary(per_chart, flipped, energy):
+def distortion_summary(per_chart: list[dict[str, Any]], flipped: int, energy: float) -> dict[str, Any]:
     """The report's whole-mesh summary: chart distortions combined, weighted by their 3D area."""
     total = sum(x["area_3d"] for x in per_chart) or 1.0
     return dict(
@@ -178,7 +181,7 @@ def _interior_edges(F):
     return h0 // 3, h0 % 3, h1 // 3, h1 % 3
 
 
-def cut_edges(F, uv):
+def cut_edges(F: np.ndarray, uv: ArrayLike) -> tuple[np.ndarray, ...]:
     """Interior edges whose two faces disagree on the UV of an endpoint.
 
     Returns
@@ -201,7 +204,7 @@ def cut_edges(F, uv):
     return cut, f0, f1, np.stack([a0, b0], axis=1)
 
 
-def uv_seam_length(V, F, uv):
+def uv_seam_length(V: ArrayLike, F: np.ndarray, uv: ArrayLike) -> float:
     """Total 3D length of cut interior edges (see the module docstring)."""
     V = np.asarray(V, dtype=np.float64)
     cut, _, _, verts = cut_edges(F, uv)
@@ -209,7 +212,7 @@ def uv_seam_length(V, F, uv):
     return float(np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1).sum())
 
 
-def chart_ids(F, uv):
+def chart_ids(F: np.ndarray, uv: ArrayLike) -> np.ndarray:
     """Chart of every face: components of faces joined through uncut interior edges."""
     F = np.asarray(F, dtype=np.int64)
     m = len(F)
@@ -220,7 +223,7 @@ def chart_ids(F, uv):
     return labels.astype(np.int64)
 
 
-def flipped(F, uv, charts=None):
+def flipped(F: np.ndarray, uv: ArrayLike, charts: np.ndarray | None = None) -> np.ndarray:
     """Faces flipped against their chart's orientation (sign of the chart's total signed area), or zero.
 
     ``charts`` defaults to :func:`chart_ids`. A chart mirrored as a whole has no flipped face.
@@ -233,7 +236,8 @@ def flipped(F, uv, charts=None):
     return np.flatnonzero(A * orient <= 0)
 
 
-def packing_efficiency(uv, F=None, *, width=1.0, height=1.0):
+def packing_efficiency(uv: ArrayLike, F: np.ndarray | None = None, *, width: float = 1.0,
+                       height: float = 1.0) -> float:
     """Total |UV area| / (width * height): atlas coverage (assumes no overlaps)."""
     return float(np.abs(signed_areas(corners(uv, F))).sum() / (width * height))
 
@@ -249,7 +253,7 @@ class MapMetrics:
     seam_length: float
 
 
-def measure(V, F, uv, *, area_scale="median"):
+def measure(V: np.ndarray, F: np.ndarray, uv: np.ndarray, *, area_scale: str = "median") -> MapMetrics:
     """All the per-map metrics above in one record (flips per chart orientation, charts from cuts)."""
     C = corners(uv, F)
     d = distortion(V, F, C, area_scale=area_scale)
@@ -271,7 +275,7 @@ def _areas_3d(V, F):
     return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
 
 
-def texel_share(V, F, corner_uv):
+def texel_share(V: np.ndarray, F: np.ndarray, corner_uv: ArrayLike) -> np.ndarray:
     """(m,) texel share of every triangle: its share of the UV area over its share of the 3D area.
 
     ``corner_uv`` is (m,3,2) (per-vertex (n,2) UVs are accepted too). Triangles with zero 3D area get
@@ -288,13 +292,13 @@ def texel_share(V, F, corner_uv):
     return np.where(a_3d > 0, s, 1.0)
 
 
-def area_below(V, F, share, threshold):
+def area_below(V: np.ndarray, F: np.ndarray, share: ArrayLike, threshold: float) -> float:
     """Share of the 3D surface area whose texel share is below ``threshold``."""
     a = _areas_3d(V, F)
     return float(a[np.asarray(share) < threshold].sum() / a.sum()) if a.sum() > 0 else 0.0
 
 
-def texel_summary(V, F, corner_uv):
+def texel_summary(V: np.ndarray, F: np.ndarray, corner_uv: ArrayLike) -> dict[str, float]:
     """The report's texel fields: least share and the area shares below 1/4 and 1/16 of fair."""
     s = texel_share(V, F, corner_uv)
     return dict(min_texel_share=float(s.min()) if len(s) else 1.0,

@@ -113,7 +113,7 @@ def run(spec: dict) -> dict:
     return row
 
 
-def main(argv):
+def main(argv: list[str]) -> None:
     spec = json.loads(Path(argv[0]).read_text())
     threading.Thread(target=_watch_parent, args=(spec.get("watch_pid"),), daemon=True).start()
     staging = Path(spec["staging"])

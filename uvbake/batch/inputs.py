@@ -26,6 +26,7 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from uvbake.errors import InputError
 from uvbake.io.load import MESH_EXTENSIONS
@@ -42,7 +43,7 @@ class Asset:
     timeout_s: float | None = None  # per-asset time limit from a manifest (None: the batch's)
 
 
-def collect(inputs, *, out_dir=None) -> list:
+def collect(inputs: Any, *, out_dir: str | os.PathLike[str] | None = None) -> list:
     """The assets named by ``inputs`` (files, folders, manifests), sorted by id.
 
     Raises
@@ -141,7 +142,7 @@ def _manifest(path: Path) -> list:
     return out
 
 
-def file_hash(path) -> str:
+def file_hash(path: str | os.PathLike[str]) -> str:
     """sha256 of a file's bytes (hex)."""
     h = hashlib.sha256()
     with open(path, "rb") as fh:

@@ -16,7 +16,9 @@ from __future__ import annotations
 import html
 import json
 import math
+import os
 from pathlib import Path
+from typing import Any
 from urllib.parse import quote
 
 #: (header, row key, kind) of the table's data columns; kind "num" sorts numerically
@@ -66,7 +68,8 @@ if(location.search.includes('selftest=1')){window.addEventListener('load',()=>{
 """
 
 
-def write_report(path, rows, out_dir) -> Path:
+def write_report(path: str | os.PathLike[str], rows: list[dict[str, Any]],
+                 out_dir: str | os.PathLike[str]) -> Path:
     """Write the report for ``rows`` (summary rows, failures first) to ``path``, atomically."""
     from uvbake.io.atomic import atomic_write
 

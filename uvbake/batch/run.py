@@ -8,6 +8,7 @@ import os
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
 from uvbake.batch.inputs import collect, file_hash, options_hash
 from uvbake.batch.task import (
@@ -39,7 +40,7 @@ COLUMNS = ["asset", "status", "error", "charts", "charts_input", "valid", "n_fli
 STATUS_ORDER = {"crashed": 0, "timeout": 1, "lost": 2, "failed": 3, "invalid": 4, "done": 5, "cached": 6}
 
 
-def normalise_options(**options):
+def normalise_options(**options: Any) -> dict[str, Any]:
     """Check the unwrap and output options and return them in canonical form (part of every key).
 
     Raises InputError naming the option (by its Python name) for anything not usable.
@@ -74,8 +75,9 @@ def normalise_options(**options):
     return dict(unwrap=u, **o, uvbake=__version__)
 
 
-def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_per_asset_s=DEFAULT_TIMEOUT_S,
-        retries=1, progress=False, html=True, **options):
+def run(inputs: Any, out_dir: str | os.PathLike[str], client: Any = None, *, scheduler: str | None = None,
+        workers: int | None = None, timeout_per_asset_s: float = DEFAULT_TIMEOUT_S, retries: int = 1,
+        progress: bool = False, html: bool = True, **options: Any) -> Any:
     """Unwrap every asset of ``inputs`` into ``out_dir``, on Dask; return the summary table.
 
     Parameters
@@ -117,10 +119,7 @@ def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_p
     """
     _require_extra()
     opts = normalise_options(**options)
-    if not (timeout_per_asset_s and timeout_per_asset_s > 0):
-        raise InputError(f"timeout_per_asset_s={timeout_per_asset_s!r} must be a positive number of seconds")
-    if workers is not None and (int(workers) != workers or workers < 1):
-        raise InputError(f"workers={workers!r} must be a whole number of at least 1")
+    _check_run_args(timeout_per_asset_s, workers)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"output {out} is a file; give a folder with -o")
@@ -128,8 +127,32 @@ def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_p
     out.mkdir(parents=True, exist_ok=True)
     (out / "assets").mkdir(exist_ok=True)
     _remove_stale_staging(out / "assets")
-    okey = options_hash(opts)
+    rows, todo = _plan(assets, out, opts, timeout_per_asset_s)
+    bar = _bar(len(assets), len(rows)) if progress else None
+    try:
+        _execute(todo, rows, client, scheduler, workers, retries, progress, bar)
+    finally:
+        if bar is not None:
+            bar.close()
+    table = _table([rows[a.id] for a in assets])
+    _write_summary(out, table)
+    if html:
+        from uvbake.batch.report import write_report
 
+        write_report(out / "report.html", table.to_pylist(), out)
+    return table
+
+
+def _check_run_args(timeout_per_asset_s, workers):
+    if not (timeout_per_asset_s and timeout_per_asset_s > 0):
+        raise InputError(f"timeout_per_asset_s={timeout_per_asset_s!r} must be a positive number of seconds")
+    if workers is not None and (int(workers) != workers or workers < 1):
+        raise InputError(f"workers={workers!r} must be a whole number of at least 1")
+
+
+def _plan(assets, out, opts, timeout_per_asset_s):
+    """Rows of the assets a matching marker says are done (``cached``) and task specs for the rest."""
+    okey = options_hash(opts)
     rows, todo = {}, []
     for a in assets:
         key = f"{file_hash(a.path)}-{okey}"
@@ -140,39 +163,35 @@ def run(inputs, out_dir, client=None, *, scheduler=None, workers=None, timeout_p
         else:
             todo.append(dict(id=a.id, input=str(a.path), asset_dir=str(asset_dir.resolve()), key=key, options=opts,
                              timeout_s=float(a.timeout_s or timeout_per_asset_s)))
+    return rows, todo
 
-    bar = _bar(len(assets), len(rows)) if progress else None
+
+def _execute(todo, rows, client, scheduler, workers, retries, progress, bar):
+    """Run the task specs ``todo`` into ``rows``: a plain loop (``client="local"``) or on Dask."""
+    if not todo:
+        return
+    if client == "local":
+        for spec in todo:
+            try:
+                rows[spec["id"]] = process(spec)
+            except Exception as exc:  # noqa: BLE001 - recorded like a task Dask could not run
+                rows[spec["id"]] = _lost(spec, exc)
+            if bar is not None:
+                bar.update(1)
+        return
     own = None
     try:
-        if todo and client == "local":
-            for spec in todo:
-                try:
-                    rows[spec["id"]] = process(spec)
-                except Exception as exc:  # noqa: BLE001 - recorded like a task Dask could not run
-                    rows[spec["id"]] = _lost(spec, exc)
-                if bar is not None:
-                    bar.update(1)
-        elif todo:
-            if client is None:
-                client = own = _client(scheduler, workers)
-            if progress:
-                _print_dashboard(client)
-            _run_dask(client, todo, rows, retries, bar)
+        if client is None:
+            client = own = _client(scheduler, workers)
+        if progress:
+            _print_dashboard(client)
+        _run_dask(client, todo, rows, retries, bar)
     finally:
-        if bar is not None:
-            bar.close()
         if own is not None:
             cluster = getattr(own, "cluster", None)
             own.close()
             if cluster is not None:
                 cluster.close()
-    table = _table([rows[a.id] for a in assets])
-    _write_summary(out, table)
-    if html:
-        from uvbake.batch.report import write_report
-
-        write_report(out / "report.html", table.to_pylist(), out)
-    return table
 
 
 def _require_extra():
@@ -282,6 +301,6 @@ def _write_summary(out: Path, table):
         fh.write(buf.getvalue())
 
 
-def exit_status(table) -> int:
+def exit_status(table: Any) -> int:
     """0 when every asset is done or cached, else 1."""
     return 0 if all(s in OK_STATUSES for s in table.column("status").to_pylist()) else 1

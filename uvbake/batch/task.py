@@ -32,6 +32,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 from uvbake.io.atomic import atomic_write
 
@@ -41,7 +42,7 @@ STAGING_PREFIX = ".staging-"
 OK_STATUSES = ("done", "cached")
 
 
-def read_marker(asset_dir, key):
+def read_marker(asset_dir: str | os.PathLike[str], key: str) -> dict[str, Any] | None:
     """The marker of a completed asset whose outputs are intact and whose key is ``key``, else None."""
     path = Path(asset_dir) / MARKER
     try:
@@ -56,7 +57,7 @@ def read_marker(asset_dir, key):
     return marker
 
 
-def write_marker(asset_dir, marker):
+def write_marker(asset_dir: str | os.PathLike[str], marker: dict[str, Any]) -> None:
     with atomic_write(Path(asset_dir) / MARKER) as fh:
         json.dump(marker, fh, indent=1, sort_keys=True)
 
@@ -72,7 +73,7 @@ def _sha256(path):
     return h.hexdigest()
 
 
-def worker_name():
+def worker_name() -> str:
     """The Dask worker's address when running on one, else ``host:pid``."""
     try:
         from distributed import get_worker

@@ -23,7 +23,7 @@ PRELOAD = ("uvbake.atlas.pipeline", "uvbake.io.export", "uvbake.batch.child", "u
            "trimesh", "PIL.Image")
 
 
-def main():
+def main() -> None:
     import importlib
 
     for name in PRELOAD:

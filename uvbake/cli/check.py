@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from typing import Any
 
 import numpy as np
 
@@ -22,6 +21,7 @@ from uvbake.cli.common import run as run_command
 from uvbake.errors import InputError
 from uvbake.io.atomic import atomic_write_bytes
 from uvbake.io.export import save_png
+from uvbake.io.uvread import read_uv
 from uvbake.pictures import legend_lines, with_legend
 from uvbake.validate.candidates import _row_ids
 from uvbake.validate.core import validate
@@ -68,40 +68,22 @@ def load_uv_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     uv : (n,2) float64
     F : (m,3) int64
     """
-    import trimesh
-
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise InputError(f"no such file: {path}; pass the path of a .obj, .glb, .gltf or .ply mesh")
-    if path.lower().endswith(".obj"):
-        from uvbake.io.obj import load_obj_uv
-
-        load_obj_uv(path)        # trimesh drops out-of-range 'vt' indices silently; this names them
-    try:
-        loaded = trimesh.load(path, process=False)
-    except Exception as exc:  # trimesh raises many types for unreadable files
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(
-            f"cannot read {path}: {msg}; pass a valid .obj, .glb, .gltf or .ply mesh"
-        ) from None
-    geoms: list[Any] = list(loaded.geometry.values()) if isinstance(loaded, trimesh.Scene) else [loaded]
-    uvs, faces, offset, n_tri = [], [], 0, 0
-    for g in geoms:
-        F = np.asarray(getattr(g, "faces", np.zeros((0, 3))), dtype=np.int64)
-        if F.ndim != 2 or len(F) == 0:
+    parts = read_uv(path)
+    uvs, faces, offset = [], [], 0
+    n_tri = sum(len(part.F) for part in parts)
+    for part in parts:
+        if part.corner_uv is None:
             continue
-        n_tri += len(F)
-        uv = getattr(getattr(g, "visual", None), "uv", None)
-        if uv is None or len(uv) != len(g.vertices):
-            continue
-        uv = np.asarray(uv, dtype=np.float64)[:, :2]
-        V = np.asarray(g.vertices, dtype=np.float64)
-        keys = (np.column_stack([V, uv]) + 0.0).view(np.int64)  # +0.0 folds -0.0 into 0.0
-        ids = _row_ids(keys)
+        corner_uv = part.corner_uv.reshape(-1, 2)
+        keys = (np.column_stack([part.V[part.F].reshape(-1, 3), corner_uv]) + 0.0).view(np.int64)
+        ids = _row_ids(keys)  # +0.0 above folds -0.0 into 0.0
         welded = np.empty((int(ids.max()) + 1 if len(ids) else 0, 2))
-        welded[ids] = uv
+        welded[ids] = corner_uv
         uvs.append(welded)
-        faces.append(ids[F] + offset)
+        faces.append(ids.reshape(-1, 3) + offset)
         offset += len(welded)
     if not faces:
         what = "no triangles" if n_tri == 0 else "no texture coordinates"

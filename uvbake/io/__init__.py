@@ -5,6 +5,7 @@ from uvbake.io.load import LABEL_NAMES, MESH_EXTENSIONS, load_mesh
 from uvbake.io.meshdata import MeshData
 from uvbake.io.obj import load_obj_uv, save_obj
 from uvbake.io.ply import read_ply_elements
+from uvbake.io.uvread import read_uv
 
 __all__ = [
     "load_mesh",
@@ -12,6 +13,7 @@ __all__ = [
     "LABEL_NAMES",
     "MESH_EXTENSIONS",
     "load_obj_uv",
+    "read_uv",
     "save_obj",
     "read_ply_elements",
     "atomic_write",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def split_corners(F, corner_uv):
+def split_corners(F: np.ndarray, corner_uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Split vertices per distinct (vertex, UV) pair, as glTF needs one UV per vertex.
 
     Returns

@@ -21,14 +21,16 @@ leaves no new files and every existing file untouched.
 from __future__ import annotations
 
 import io as _io
+import os
 from pathlib import Path
 
 import numpy as np
 
 from uvbake.errors import InputError
 from uvbake.io.atomic import OutputSet, atomic_write_bytes
-from uvbake.io.gltf import _load_glb, glb_bytes
-from uvbake.io.obj import load_obj_uv, save_obj
+from uvbake.io.gltf import glb_bytes
+from uvbake.io.obj import save_obj
+from uvbake.io.uvread import read_uv
 
 #: Extensions save_textured writes.
 TEXTURED_EXTENSIONS = (".obj", ".glb")
@@ -114,7 +116,7 @@ def save_png(path, image) -> Path:
     return path
 
 
-def load_textured_uv(path):
+def load_textured_uv(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read back a textured mesh written by :func:`save_textured`.
 
     Returns
@@ -127,13 +129,11 @@ def load_textured_uv(path):
     """
     path = Path(path)
     ext = path.suffix.lower()
-    if ext == ".obj":
-        mesh, uv, uv_faces = load_obj_uv(path)
-        if uv_faces is None:
+    if ext in TEXTURED_EXTENSIONS:
+        parts = read_uv(path)
+        if len(parts) != 1 or parts[0].corner_uv is None:
             raise InputError(f"{path}: has no texture coordinates on every face; export it again")
-        return mesh.V, mesh.F, uv[uv_faces]
-    if ext == ".glb":
-        return _load_glb(path)
+        return parts[0].V, parts[0].F, parts[0].corner_uv
     raise InputError(f"{path}: unknown textured-mesh format {path.suffix!r}; use .obj or .glb")
 
 

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 from uvbake.io.meshdata import MeshData, _check_labels, _make
@@ -49,7 +50,7 @@ MESH_EXTENSIONS = (".ply", ".obj", ".off", ".glb", ".gltf", ".stl")
 # loading
 
 
-def load_mesh(source, *, face_labels=None) -> MeshData:
+def load_mesh(source: Any, *, face_labels: ArrayLike | None = None) -> MeshData:
     """Read a triangle mesh from a file, arrays, a trimesh or an Open3D mesh.
 
     Parameters

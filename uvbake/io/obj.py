@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import io
+import os
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 from uvbake.io.atomic import atomic_write
-from uvbake.io.meshdata import _as_int, _make
+from uvbake.io.meshdata import MeshData, _as_int, _make
 
 
-def load_obj_uv(path):
+def load_obj_uv(path: str | os.PathLike[str]) -> tuple[MeshData, np.ndarray | None, np.ndarray | None]:
     """Read an OBJ file exactly as written: mesh, texture coordinates and their faces.
 
     Parameters
@@ -107,8 +109,10 @@ def _obj_index(token: str, count: int) -> int:
     return i - 1 if i > 0 else count + i
 
 
-def save_obj(path, V, F, *, uv=None, uv_faces=None, vertex_colors=None, mtllib=None,
-             material=None, as_text=False):
+def save_obj(path: str | os.PathLike[str], V: ArrayLike, F: ArrayLike, *, uv: np.ndarray | None = None,
+             uv_faces: np.ndarray | None = None, vertex_colors: ArrayLike | None = None,
+             mtllib: str | None = None, material: str | None = None,
+             as_text: bool = False) -> str | None:
     """Write a triangle mesh as OBJ, atomically and with full float precision.
 
     Parameters

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import numpy as np
@@ -18,7 +19,7 @@ _PLY_TYPES = {
 }
 
 
-def read_ply_elements(path) -> dict:
+def read_ply_elements(path: str | os.PathLike[str]) -> dict:
     """Parse a PLY file (ASCII or binary, any list lengths) into ``{element: {property: values}}``.
 
     Scalar properties become arrays; list properties become an (count,k) array when every row has

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 
@@ -13,7 +14,7 @@ def _list(ids, limit=5):
     return s + (", ..." if len(ids) > limit else "")
 
 
-def check_arrays(V, F, *, where="mesh"):
+def check_arrays(V: ArrayLike, F: ArrayLike, *, where: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
     """Validate array shapes, types, finiteness and index range; return (V float64, F int64)."""
     try:
         V = np.asarray(V, dtype=np.float64)

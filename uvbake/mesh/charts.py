@@ -11,11 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from uvbake.errors import ChartError, InputError, NotDiskError
 from uvbake.mesh.arrays import _list, check_arrays, unit_exponent
-from uvbake.mesh.topology import face_adjacency, nonmanifold_vertices, topology
+from uvbake.mesh.topology import Topology, face_adjacency, nonmanifold_vertices, topology
 
 
 @dataclass
@@ -40,7 +41,7 @@ class Chart:
     name: str = "chart 0"
 
 
-def check_chart(V, F, *, name="chart 0"):
+def check_chart(V: ArrayLike, F: ArrayLike, *, name: str = "chart 0") -> Topology:
     """Raise a :class:`ChartError` unless (V, F) is one connected, manifold disk with holes.
 
     Checks, in order: degenerate triangles (repeated indices or zero area), unreferenced vertices,
@@ -48,7 +49,9 @@ def check_chart(V, F, *, name="chart 0"):
     components, no boundary (closed), handles (genus > 0). Returns the chart's :class:`Topology`.
     """
     V, F = check_arrays(V, F, where=name)
-    V = np.ldexp(V, -unit_exponent(V))       # exact: areas neither overflow nor underflow at any scale
+    # exact: areas neither overflow nor underflow at any scale
+    V = np.asarray(np.ldexp(V, -unit_exponent(V)), dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
     n = len(V)
     rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
     X = V[F]
@@ -99,7 +102,8 @@ def check_chart(V, F, *, name="chart 0"):
     return topo
 
 
-def split_charts(V, F, labels=None, *, check=True):
+def split_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
+                 check: bool = True) -> list[Chart]:
     """Split a mesh into charts: one per segment label and edge-connected component.
 
     Parameters

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 
@@ -27,14 +28,14 @@ def _edges(F, n):
     return he, uniq, he[cnt[inv] == 1]
 
 
-def boundary_edges(F, n_vertices=None):
+def boundary_edges(F: ArrayLike, n_vertices: int | None = None) -> np.ndarray:
     """(b,2) boundary half-edges (edges of one triangle only), oriented as in their triangle: the
     cheap part of :func:`topology`, for callers that need nothing else."""
     F = np.asarray(F, dtype=np.int64)
     return _edges(F, int(F.max()) + 1 if n_vertices is None else n_vertices)[2]
 
 
-def topology(F, n_vertices=None):
+def topology(F: ArrayLike, n_vertices: int | None = None) -> Topology:
     """Edge counts, components, boundary loops and genus of a manifold triangle mesh."""
     F = np.asarray(F, dtype=np.int64)
     n = int(F.max()) + 1 if n_vertices is None else n_vertices
@@ -55,7 +56,7 @@ def topology(F, n_vertices=None):
     return Topology(len(used), len(uniq), len(F), n_comp, n_loops, int(genus), boundary)
 
 
-def nonmanifold_vertices(F, n):
+def nonmanifold_vertices(F: ArrayLike, n: int) -> np.ndarray:
     """Vertices whose incident triangles form more than one edge-connected fan (bowties)."""
     F = np.asarray(F, dtype=np.int64)
     m = len(F)
@@ -85,7 +86,8 @@ def nonmanifold_vertices(F, n):
     return np.flatnonzero(counts > 1)
 
 
-def face_adjacency(F, n_vertices=None, *, return_halfedges=False):
+def face_adjacency(F: ArrayLike, n_vertices: int | None = None, *,
+                   return_halfedges: bool = False) -> tuple[np.ndarray, ...]:
     """Pairs of faces sharing an edge, and that edge.
 
     Returns

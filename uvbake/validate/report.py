@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -255,7 +256,7 @@ class ValidationReport:
             dots(0.5 * (lo + hi), OVERLAP_RGB)
         return img[::-1].copy()
 
-    def save_image(self, path) -> None:
+    def save_image(self, path: str | os.PathLike[str]) -> None:
         """Write :meth:`overlap_image` as a PNG, atomically (temp file in the same folder, then rename)."""
         import io
 
