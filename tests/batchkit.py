@@ -65,7 +65,8 @@ def slow_mesh(path, n=400):
 def env():
     """Environment for subprocesses that must import this checkout's uvbake."""
     e = dict(os.environ)
-    e["PYTHONPATH"] = os.pathsep.join([str(REPO), str(REPO / "plugins")] + [e["PYTHONPATH"]] * bool(e.get("PYTHONPATH")))
+    inherited = [e["PYTHONPATH"]] if e.get("PYTHONPATH") else []        # CI runs with none set
+    e["PYTHONPATH"] = os.pathsep.join([str(REPO), str(REPO / "plugins"), *inherited])
     return e
 
 
