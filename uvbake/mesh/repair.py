@@ -285,148 +285,181 @@ def soup_like(F, n):
     return bool(np.count_nonzero(cnt == 1) > 0.5 * len(cnt))
 
 
+@dataclass
+class _Pass:
+    """The mesh as one pass changes it: fidx/vidx give the input ids (examples are reported in them)."""
+
+    V: np.ndarray
+    F: np.ndarray
+    fidx: np.ndarray
+    vidx: np.ndarray
+    actions: list = field(default_factory=list)
+    warns: list = field(default_factory=list)
+
+
 def _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol, weld=True):
     """One pass of every step; fidx/vidx give the input ids (examples are reported in them).
 
     Returns V, F, face_index, vertex_index (into the original input), actions, warnings.
     """
-    n = len(V)
-    actions, warns = [], []
+    p = _Pass(V, F, fidx, vidx)
+    _drop_nonfinite(p)
+    if len(p.F) and weld:
+        _weld_step(p, weld_tol)
+    for step in (_drop_degenerate, _drop_duplicates, _split_nonmanifold, _orient):
+        if len(p.F):
+            step(p)
+    if len(p.F):
+        _drop_specks(p, min_component_faces)
+    _drop_unreferenced(p)
+    return p.V, p.F, p.fidx, p.vidx, p.actions, p.warns
 
-    # 1. non-finite coordinates
-    bad_v = ~np.isfinite(V).all(axis=1)
+
+def _drop_nonfinite(p):
+    """Step 1: triangles touching a vertex with NaN or infinite coordinates."""
+    bad_v = ~np.isfinite(p.V).all(axis=1)
     if bad_v.any():
-        drop = bad_v[F].any(axis=1)
+        drop = bad_v[p.F].any(axis=1)
         if drop.any():
-            actions.append({"kind": "drop_nonfinite_faces", "count": int(drop.sum()),
-                            "examples": _ex(fidx[drop]), "vertices": _ex(np.flatnonzero(bad_v))})
-            warns.append(f"dropped {int(drop.sum())} triangles with NaN/infinite vertex coordinates "
-                         f"(triangles {_list(fidx[drop])})")
-            F, fidx = F[~drop], fidx[~drop]
+            p.actions.append({"kind": "drop_nonfinite_faces", "count": int(drop.sum()),
+                              "examples": _ex(p.fidx[drop]), "vertices": _ex(np.flatnonzero(bad_v))})
+            p.warns.append(f"dropped {int(drop.sum())} triangles with NaN/infinite vertex coordinates "
+                           f"(triangles {_list(p.fidx[drop])})")
+            p.F, p.fidx = p.F[~drop], p.fidx[~drop]
 
-    # 2. weld coincident boundary vertices that zip boundary edges (a soup, or when asked: a cut the
-    #    user made, with duplicated positions along it, is their seam)
-    if len(F) and weld:
-        rep = _weld(V, F, weld_tol)
-        moved = np.flatnonzero(rep != np.arange(n))
-        if len(moved):
-            actions.append({"kind": "weld_vertices", "count": int(len(moved)),
-                            "examples": [[int(vidx[a]), int(vidx[rep[a]])] for a in moved[:5]]})
-            F = rep[F]
 
-    # 3. degenerate triangles
-    if len(F):
-        X = V[F]
-        e = np.linalg.norm(X[:, [1, 2, 0]] - X, axis=2)
-        dbl = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
-        scale = max(float(np.mean(e)), np.finfo(float).tiny)
-        rpt = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
-        deg = rpt | (dbl <= 1e-12 * np.maximum(e.max(axis=1), scale) ** 2)
-        if deg.any():
-            actions.append({"kind": "drop_degenerate_faces", "count": int(deg.sum()),
-                            "examples": _ex(fidx[deg]), "repeated_vertex": int(rpt.sum())})
-            F, fidx = F[~deg], fidx[~deg]
+def _weld_step(p, weld_tol):
+    """Step 2: weld coincident boundary vertices that zip boundary edges (a soup, or when asked: a cut
+    the user made, with duplicated positions along it, is their seam)."""
+    n = len(p.V)
+    rep = _weld(p.V, p.F, weld_tol)
+    moved = np.flatnonzero(rep != np.arange(n))
+    if len(moved):
+        p.actions.append({"kind": "weld_vertices", "count": int(len(moved)),
+                          "examples": [[int(p.vidx[a]), int(p.vidx[rep[a]])] for a in moved[:5]]})
+        p.F = rep[p.F]
 
-    # 4. duplicated triangles
-    if len(F):
-        _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
-        if len(first) < len(F):
-            keep = np.zeros(len(F), bool)
-            keep[first] = True
-            actions.append({"kind": "drop_duplicate_faces", "count": int((~keep).sum()),
-                            "examples": _ex(fidx[~keep])})
-            F, fidx = F[keep], fidx[keep]
 
-    # 5-6. non-manifold edges and vertices: one vertex per fan
-    if len(F):
-        fan, nm_edges = _nonmanifold(V, F, n)
+def _drop_degenerate(p):
+    """Step 3: degenerate triangles."""
+    F = p.F
+    X = p.V[F]
+    e = np.linalg.norm(X[:, [1, 2, 0]] - X, axis=2)
+    dbl = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    scale = max(float(np.mean(e)), np.finfo(float).tiny)
+    rpt = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    deg = rpt | (dbl <= 1e-12 * np.maximum(e.max(axis=1), scale) ** 2)
+    if deg.any():
+        p.actions.append({"kind": "drop_degenerate_faces", "count": int(deg.sum()),
+                          "examples": _ex(p.fidx[deg]), "repeated_vertex": int(rpt.sum())})
+        p.F, p.fidx = F[~deg], p.fidx[~deg]
+
+
+def _drop_duplicates(p):
+    """Step 4: duplicated triangles (the first is kept)."""
+    _, first = np.unique(np.sort(p.F, axis=1), axis=0, return_index=True)
+    if len(first) < len(p.F):
+        keep = np.zeros(len(p.F), bool)
+        keep[first] = True
+        p.actions.append({"kind": "drop_duplicate_faces", "count": int((~keep).sum()),
+                          "examples": _ex(p.fidx[~keep])})
+        p.F, p.fidx = p.F[keep], p.fidx[keep]
+
+
+def _split_nonmanifold(p):
+    """Steps 5-6: non-manifold edges and vertices: one vertex per fan."""
+    F, n, vidx = p.F, len(p.V), p.vidx
+    fan, nm_edges = _nonmanifold(p.V, F, n)
+    G, vmap, split_v = _vertices_per_fan(F, n, fan)
+    if len(vmap) <= n:
+        return
+    _, key = _edge_keys(G, len(vmap))
+    _, cnt = np.unique(key, return_counts=True)
+    if (cnt > 2).any():
+        # the best-pair rule left some edges shared: detach every triangle at those edges
+        fan = _nonmanifold_full_detach(F, n)
         G, vmap, split_v = _vertices_per_fan(F, n, fan)
-        if len(vmap) > n:
-            _, key = _edge_keys(G, len(vmap))
-            _, cnt = np.unique(key, return_counts=True)
-            if (cnt > 2).any():
-                # the best-pair rule left some edges shared: detach every triangle at those edges
-                fan = _nonmanifold_full_detach(F, n)
-                G, vmap, split_v = _vertices_per_fan(F, n, fan)
-                _, key = _edge_keys(G, len(vmap))
-                uk, cnt = np.unique(key, return_counts=True)
-                if (cnt > 2).any():
-                    nn = len(vmap)
-                    bad = uk[cnt > 2]
-                    pairs = ", ".join(f"({vidx[vmap[k // nn]]},{vidx[vmap[k % nn]]})" for k in bad[:5])
-                    raise InputError(f"repair: {len(bad)} non-manifold edges (input vertices {pairs}) cannot be "
-                                     "separated by duplicating vertices; remove the triangles around them")
-            if len(nm_edges):
-                actions.append({"kind": "split_nonmanifold_edges", "count": int(len(nm_edges)),
-                                "examples": [[int(a), int(b)] for a, b in vidx[nm_edges[:5]]]})
-                warns.append(f"split {len(nm_edges)} non-manifold edges (edges "
-                             f"{', '.join(f'({a},{b})' for a, b in vidx[nm_edges[:5]])}) by detaching triangles")
-            actions.append({"kind": "split_nonmanifold_vertices", "count": int(len(vmap) - n),
-                            "examples": _ex(vidx[split_v])})
-            F, V, vidx = G, V[vmap], vidx[vmap]
-            n = len(V)
+        _, key = _edge_keys(G, len(vmap))
+        uk, cnt = np.unique(key, return_counts=True)
+        if (cnt > 2).any():
+            nn = len(vmap)
+            bad = uk[cnt > 2]
+            pairs = ", ".join(f"({vidx[vmap[k // nn]]},{vidx[vmap[k % nn]]})" for k in bad[:5])
+            raise InputError(f"repair: {len(bad)} non-manifold edges (input vertices {pairs}) cannot be "
+                             "separated by duplicating vertices; remove the triangles around them")
+    if len(nm_edges):
+        p.actions.append({"kind": "split_nonmanifold_edges", "count": int(len(nm_edges)),
+                          "examples": [[int(a), int(b)] for a, b in vidx[nm_edges[:5]]]})
+        p.warns.append(f"split {len(nm_edges)} non-manifold edges (edges "
+                       f"{', '.join(f'({a},{b})' for a, b in vidx[nm_edges[:5]])}) by detaching triangles")
+    p.actions.append({"kind": "split_nonmanifold_vertices", "count": int(len(vmap) - n),
+                      "examples": _ex(vidx[split_v])})
+    p.F, p.V, p.vidx = G, p.V[vmap], vidx[vmap]
 
-    # 7. consistent winding
-    if len(F):
-        flip, vhi, vhj, vfi, vfj, okhi, okhj = _orient_parity(F, n)
-        if len(vfi):
-            # non-orientable: cut along the edges where the parity disagrees, then orient again
-            fan = _corner_fans(F, n, okhi, okhj)
-            G, vmap, _ = _vertices_per_fan(F, n, fan)
-            flip2, _, _, wfi, wfj, _, _ = _orient_parity(G, len(vmap))
-            if len(wfi):
-                faces = np.unique(np.concatenate([fidx[vfi], fidx[vfj]]))
-                raise InputError(f"repair: the mesh is not orientable around triangles {_list(faces)} (a "
-                                 "Moebius-like strip); cut it there or give those triangles their own segment label")
-            actions.append({"kind": "cut_nonorientable", "count": int(len(vfi)),
-                            "examples": _ex(np.unique(fidx[vfi]))})
-            warns.append(f"cut a non-orientable piece along {len(vfi)} edges (at triangles "
-                         f"{_list(np.unique(fidx[vfi]))}) so it can be oriented")
-            F, V, vidx, n, flip = G, V[vmap], vidx[vmap], len(vmap), flip2
-        if flip.any():
-            actions.append({"kind": "flip_faces", "count": int(flip.sum()), "examples": _ex(fidx[flip])})
-            F = F.copy()
-            F[flip] = F[flip][:, [0, 2, 1]]
 
-    # 8. specks
-    if len(F):
-        mm = len(F)
-        thr = min_component_faces
-        if thr is None:
-            thr = min(10, mm // 1000)
-        he, key = _edge_keys(F, n)
-        order = np.argsort(key, kind="stable")
-        ks = key[order]
-        same = np.flatnonzero(ks[1:] == ks[:-1])
-        fi, fj = order[same] // 3, order[same + 1] // 3
-        nc, comp = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(mm, mm)),
-                                        directed=False)
-        if nc > 1 and thr > 1:
-            size = np.bincount(comp, minlength=nc)
-            small = size < thr
-            small[np.argmax(size)] = False
-            drop = small[comp]
-            if drop.sum() > SPECK_SHARE * mm:
-                # not specks but the mesh itself (e.g. a triangle soup): keep every piece as a chart
-                drop[:] = False
-            if drop.any():
-                actions.append({"kind": "drop_small_components", "count": int(small.sum()),
-                                "faces": int(drop.sum()), "examples": _ex(fidx[drop]),
-                                "min_component_faces": int(thr)})
-                warns.append(f"dropped {int(small.sum())} small pieces (< {thr} triangles each, "
-                             f"{int(drop.sum())} triangles: {_list(fidx[drop])})")
-                F, fidx = F[~drop], fidx[~drop]
+def _orient(p):
+    """Step 7: consistent winding (a non-orientable piece is cut where the parity disagrees)."""
+    F, n, fidx = p.F, len(p.V), p.fidx
+    flip, vhi, vhj, vfi, vfj, okhi, okhj = _orient_parity(F, n)
+    if len(vfi):
+        # non-orientable: cut along the edges where the parity disagrees, then orient again
+        fan = _corner_fans(F, n, okhi, okhj)
+        G, vmap, _ = _vertices_per_fan(F, n, fan)
+        flip2, _, _, wfi, wfj, _, _ = _orient_parity(G, len(vmap))
+        if len(wfi):
+            faces = np.unique(np.concatenate([fidx[vfi], fidx[vfj]]))
+            raise InputError(f"repair: the mesh is not orientable around triangles {_list(faces)} (a "
+                             "Moebius-like strip); cut it there or give those triangles their own segment label")
+        p.actions.append({"kind": "cut_nonorientable", "count": int(len(vfi)),
+                          "examples": _ex(np.unique(fidx[vfi]))})
+        p.warns.append(f"cut a non-orientable piece along {len(vfi)} edges (at triangles "
+                       f"{_list(np.unique(fidx[vfi]))}) so it can be oriented")
+        p.F, p.V, p.vidx, flip = G, p.V[vmap], p.vidx[vmap], flip2
+    if flip.any():
+        p.actions.append({"kind": "flip_faces", "count": int(flip.sum()), "examples": _ex(fidx[flip])})
+        p.F = p.F.copy()
+        p.F[flip] = p.F[flip][:, [0, 2, 1]]
 
-    # 9. unreferenced vertices
-    used = np.zeros(n, bool)
-    used[F.ravel()] = True
+
+def _drop_specks(p, min_component_faces):
+    """Step 8: pieces with fewer than ``min_component_faces`` triangles (never the largest piece)."""
+    F, mm = p.F, len(p.F)
+    thr = min(10, mm // 1000) if min_component_faces is None else min_component_faces
+    he, key = _edge_keys(F, len(p.V))
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    same = np.flatnonzero(ks[1:] == ks[:-1])
+    fi, fj = order[same] // 3, order[same + 1] // 3
+    nc, comp = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(mm, mm)),
+                                    directed=False)
+    if nc <= 1 or thr <= 1:
+        return
+    size = np.bincount(comp, minlength=nc)
+    small = size < thr
+    small[np.argmax(size)] = False
+    drop = small[comp]
+    if drop.sum() > SPECK_SHARE * mm:
+        # not specks but the mesh itself (e.g. a triangle soup): keep every piece as a chart
+        drop[:] = False
+    if drop.any():
+        p.actions.append({"kind": "drop_small_components", "count": int(small.sum()),
+                          "faces": int(drop.sum()), "examples": _ex(p.fidx[drop]),
+                          "min_component_faces": int(thr)})
+        p.warns.append(f"dropped {int(small.sum())} small pieces (< {thr} triangles each, "
+                       f"{int(drop.sum())} triangles: {_list(p.fidx[drop])})")
+        p.F, p.fidx = F[~drop], p.fidx[~drop]
+
+
+def _drop_unreferenced(p):
+    """Step 9: unreferenced vertices."""
+    used = np.zeros(len(p.V), bool)
+    used[p.F.ravel()] = True
     if not used.all():
-        actions.append({"kind": "drop_unreferenced_vertices", "count": int((~used).sum()),
-                        "examples": _ex(vidx[~used])})
+        p.actions.append({"kind": "drop_unreferenced_vertices", "count": int((~used).sum()),
+                          "examples": _ex(p.vidx[~used])})
         new = np.cumsum(used) - 1
-        F = new[F]
-        V, vidx = V[used], vidx[used]
-    return V, F, fidx, vidx, actions, warns
+        p.F = new[p.F]
+        p.V, p.vidx = p.V[used], p.vidx[used]
 
 
 def _nonmanifold_full_detach(F, n):
