@@ -1,5 +1,6 @@
 """Lint, types and size limits of the package, as CI runs them (ruff, mypy, radon; configured in pyproject)."""
 
+import ast
 import importlib.util
 import subprocess
 import sys
@@ -62,3 +63,54 @@ def test_no_function_is_more_complex_than_20():
     assert _BEING_REDUCED <= blocks.keys(), _BEING_REDUCED - blocks.keys()
     complex_ = {k: c for k, c in blocks.items() if c > MAX_COMPLEXITY and k not in _BEING_REDUCED}
     assert not complex_, complex_
+
+
+# TEMPORARY: modules other branches are rewriting right now; their public functions get hints when
+# those branches are merged (the coordinator empties this set). Nothing may be added to it.
+_HINTS_PENDING = {
+    "uvbake/atlas/charting.py",
+    "uvbake/atlas/guarantee.py",
+    "uvbake/atlas/pipeline.py",
+    "uvbake/flatten/solvers/lm.py",
+    "uvbake/flatten/solve.py",
+}
+
+
+def _unannotated(tree, module):
+    """``module:line name [missing]`` for every public function or method of a public class whose
+    parameters (bar self/cls) or return are not annotated; nested functions are private to theirs."""
+    out = []
+
+    def visit(body, cls):
+        for node in body:
+            if isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
+                visit(node.body, node.name)
+            elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not node.name.startswith("_"):
+                a = node.args
+                params = a.posonlyargs + a.args + a.kwonlyargs + [x for x in (a.vararg, a.kwarg) if x]
+                if cls and params and params[0].arg in ("self", "cls"):
+                    params = params[1:]
+                missing = [x.arg for x in params if x.annotation is None] + ["return"] * (node.returns is None)
+                if missing:
+                    out.append(f"{module}:{node.lineno} {cls + '.' if cls else ''}{node.name} {missing}")
+
+    visit(tree.body, None)
+    return out
+
+
+def test_unannotated_finds_what_it_should():
+    src = ("def f(a, b: int) -> int: ...\ndef g(x: int): ...\ndef _h(y): ...\n"
+           "class C:\n    def m(self, z: int) -> None: ...\n    def n(self, w): ...\n"
+           "class _D:\n    def p(self, v): ...\n")
+    assert _unannotated(ast.parse(src), "m") == ["m:1 f ['a']", "m:2 g ['return']", "m:6 C.n ['w', 'return']"]
+
+
+def test_every_public_function_has_type_hints():
+    """mypy's ``disallow_incomplete_defs`` (pyproject) checks that partly annotated functions are
+    complete; this checks that no public function is left unannotated (mypy has no public-only switch)."""
+    missing = []
+    for p in sorted((REPO / "uvbake").rglob("*.py")):
+        module = p.relative_to(REPO).as_posix()
+        if module not in _HINTS_PENDING:
+            missing += _unannotated(ast.parse(p.read_text()), module)
+    assert not missing, "\n".join(missing)

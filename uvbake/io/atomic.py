@@ -6,12 +6,12 @@ import contextlib
 import errno
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Literal
 
 from uvbake.cancel import register_temp, unregister_temp
-from uvbake.errors import InputError
+from uvbake.errors import InputError, OutputError
 
 
 @contextlib.contextmanager
@@ -88,18 +88,18 @@ class OutputSet:
     The renames run with SIGINT/SIGTERM held back, so a signal cannot leave half of the set renamed.
     """
 
-    def __init__(self, targets, *, inputs=(), force=False):
+    def __init__(self, targets: Any, *, inputs: Iterable[str | os.PathLike[str]] = (), force: bool = False):
         self.flags = check_targets(targets, inputs=inputs, force=force)
-        self._temps = {}
+        self._temps: dict[Path, Path] = {}
 
-    def __enter__(self):
+    def __enter__(self) -> OutputSet:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         self.discard()
         return False
 
-    def temp_path(self, final) -> Path:
+    def temp_path(self, final: str | os.PathLike[str]) -> Path:
         """A fresh temporary path beside ``final`` (one of the targets) for a writer of its own."""
         final = Path(final)
         if final not in self.flags:
@@ -115,7 +115,7 @@ class OutputSet:
         register_temp(tmp)
         return self._temps[final]
 
-    def write_bytes(self, final, data: bytes) -> None:
+    def write_bytes(self, final: str | os.PathLike[str], data: bytes) -> None:
         tmp = self.temp_path(final)
         try:
             with open(tmp, "wb") as f:
@@ -125,7 +125,7 @@ class OutputSet:
         except OSError as exc:
             raise write_error(final, exc, self.flags[Path(final)]) from None
 
-    def commit(self) -> list:
+    def commit(self) -> list[Path]:
         """Rename every file written so far into place; return their final paths, in order."""
         from uvbake.cancel import check_cancelled, signals_deferred
 
@@ -152,10 +152,8 @@ class OutputSet:
         self._temps = {}
 
 
-def write_error(final, exc: OSError, flag=None):
+def write_error(final: str | os.PathLike[str], exc: OSError, flag: str | None = None) -> OutputError:
     """An :class:`~uvbake.errors.OutputError` naming the user's path (never the temporary file)."""
-    from uvbake.errors import OutputError
-
     what = f"{flag} {final}" if flag else str(final)
     if exc.errno == errno.ENOSPC:
         reason = "no space left on device; free some space or write to another disk"
@@ -170,7 +168,8 @@ def write_error(final, exc: OSError, flag=None):
     return err
 
 
-def check_targets(targets, *, inputs=(), force=False) -> dict:
+def check_targets(targets: Any, *, inputs: Iterable[str | os.PathLike[str]] = (),
+                  force: bool = False) -> dict[Path, str | None]:
     """Check output paths before any work; return ``{Path: flag}``.
 
     Parameters

@@ -200,7 +200,7 @@ def _from_arrays(source: tuple) -> MeshData:
     return _make(source[0], source[1], None, None, "arrays")
 
 
-def _from_trimesh(mesh, name: str) -> MeshData:
+def _from_trimesh(mesh: Any, name: str) -> MeshData:
     labels = None
     attrs = getattr(mesh, "face_attributes", None) or {}
     found = _first_label_name(attrs)
@@ -222,7 +222,7 @@ def _from_trimesh(mesh, name: str) -> MeshData:
     return _make(mesh.vertices, F, _trimesh_colors(mesh), labels, name)
 
 
-def _from_trimesh_scene(scene, name: str) -> MeshData:
+def _from_trimesh_scene(scene: Any, name: str) -> MeshData:
     import trimesh
 
     meshes = [g for g in scene.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)]
@@ -239,7 +239,7 @@ def _from_trimesh_scene(scene, name: str) -> MeshData:
     return MeshData(V=V, F=F, vertex_colors=colors, face_labels=None, source=name)
 
 
-def _from_open3d_legacy(mesh) -> MeshData:
+def _from_open3d_legacy(mesh: Any) -> MeshData:
     colors = None
     if mesh.has_vertex_colors():
         colors = np.asarray(mesh.vertex_colors)
@@ -247,7 +247,7 @@ def _from_open3d_legacy(mesh) -> MeshData:
                  "open3d.geometry.TriangleMesh")
 
 
-def _from_open3d_tensor(mesh) -> MeshData:
+def _from_open3d_tensor(mesh: Any) -> MeshData:
     name = "open3d.t.geometry.TriangleMesh"
     if "positions" not in mesh.vertex or "indices" not in mesh.triangle:
         raise InputError(f"{name}: has no vertex positions or triangle indices; give a triangle mesh")
