@@ -35,8 +35,10 @@ mesh comes back with equal arrays.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
@@ -75,7 +77,7 @@ class RepairResult:
     def changed(self) -> bool:
         return bool(self.actions)
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays but the counts)."""
         return {
             "n_vertices": int(len(self.V)),
@@ -275,7 +277,7 @@ def _orient_parity(F, n):
 
 
 # -------------------------------------------------------------------------------------------- pass
-def soup_like(F, n):
+def soup_like(F: np.ndarray, n: int) -> bool:
     """True when most edges are unshared: a triangle soup (every triangle with its own corners), which
     welding repairs. A mesh the user cut on purpose has few boundary edges and keeps its cuts."""
     if len(F) == 0:
@@ -297,7 +299,8 @@ class _Pass:
     warns: list = field(default_factory=list)
 
 
-def _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol, weld=True):
+def _one_pass(V: np.ndarray, F: np.ndarray, fidx: np.ndarray, vidx: np.ndarray, min_component_faces: int | None,
+              weld_tol: float, weld: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list, list]:
     """One pass of every step; fidx/vidx give the input ids (examples are reported in them).
 
     Returns V, F, face_index, vertex_index (into the original input), actions, warnings.
@@ -477,7 +480,8 @@ def _nonmanifold_full_detach(F, n):
 SPECK_SHARE = 0.01
 
 
-def repair(V, F, *, min_component_faces=None, weld_tol=1e-9, weld=None):
+def repair(V: ArrayLike, F: ArrayLike, *, min_component_faces: int | None = None, weld_tol: float = 1e-9,
+           weld: bool | None = None) -> RepairResult:
     """Repair a triangle mesh so its pieces can become charts (see the module notes for the steps).
 
     Parameters
@@ -527,7 +531,8 @@ def repair(V, F, *, min_component_faces=None, weld_tol=1e-9, weld=None):
     return RepairResult(V, F, fidx, vidx, actions, warns)
 
 
-def _check_repair_input(V, F, min_component_faces, weld_tol):
+def _check_repair_input(V: ArrayLike, F: ArrayLike, min_component_faces: int | None, weld_tol: float
+                        ) -> tuple[np.ndarray, np.ndarray]:
     try:
         V = np.asarray(V, dtype=np.float64)
     except (TypeError, ValueError):
