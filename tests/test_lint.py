@@ -2,6 +2,7 @@
 
 import ast
 import importlib.util
+import os
 import subprocess
 import sys
 
@@ -114,3 +115,32 @@ def test_every_public_function_has_type_hints():
         if module not in _HINTS_PENDING:
             missing += _unannotated(ast.parse(p.read_text()), module)
     assert not missing, "\n".join(missing)
+
+
+# `uvbake --help` must answer without loading the numerical stack (it took ~0.75 s of CPU when the
+# subcommand modules imported the pipeline at the top): the parser is built from light modules only.
+_HELP_PROBE = """
+import runpy, sys
+sys.argv = [sys.argv[1], *sys.argv[2:]]
+try:
+    if sys.argv[0] == "main":
+        from uvbake.cli import main            # the console script's entry point (pyproject [project.scripts])
+        sys.exit(main())
+    runpy.run_module(sys.argv[0], run_name="__main__", alter_sys=True)
+except SystemExit as exc:
+    assert exc.code in (0, None), exc.code
+heavy = sorted(m for m in ("numpy", "scipy", "open3d", "trimesh", "nlopt") if m in sys.modules)
+print("HEAVY", heavy)
+"""
+
+
+@pytest.mark.parametrize("entry", ["uvbake", "uvbake.cli", "main"])
+@pytest.mark.parametrize("command", ["", "unwrap", "check", "sweep", "batch"])
+def test_help_does_not_import_the_numerical_stack(entry, command):
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO), str(REPO / "plugins"), *filter(None, [env.get("PYTHONPATH")])])
+    proc = subprocess.run([sys.executable, "-c", _HELP_PROBE, entry, *command.split(), "--help"], cwd=REPO,
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "usage:" in proc.stdout                      # the help was printed
+    assert proc.stdout.rstrip().splitlines()[-1] == "HEAVY []", proc.stdout[-500:]

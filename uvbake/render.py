@@ -43,23 +43,13 @@ from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError, UvbakeError
 from uvbake.pictures import atlas_image  # noqa: F401  (the 2D atlas picture beside the 3D preview)
+from uvbake.views import DEFAULT_VIEWS, LIGHTING, TURNTABLE_ELEVATION_DEG, VIEWS  # noqa: F401  (named here too)
 
 
 class RenderError(UvbakeError, RuntimeError):
     """The offscreen renderer could not run; the message says what to install or set."""
 
 
-#: name -> (direction from the mesh centre to the eye, up vector); y-up camera frame (OpenGL/glTF).
-VIEWS = {
-    "front": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
-    "back": ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
-    "angle": ((1.0, 1.0, 1.0), (0.0, 1.0, 0.0)),
-}
-DEFAULT_VIEWS = ("front", "back", "angle")
-#: lighting modes: "unlit" shows the texture's own values; "lit" shades it with a sun light and an
-#: ambient term (shape reads better; colours are no longer the texture's bytes)
-LIGHTING = ("unlit", "lit")
-TURNTABLE_ELEVATION_DEG = 20.0
 LIT_SUN, LIT_AMBIENT = 200000.0, 60000.0      # Filament lux; chosen by eye on the sample scene
 FOV_DEG = 30.0
 SUPERSAMPLE = 2

@@ -14,10 +14,9 @@ import scipy.sparse as sp
 
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy
+from uvbake.flatten.options import INITS
 from uvbake.mesh.arrays import signed_areas, triangle_areas
 from uvbake.mesh.topology import boundary_edges, topology
-
-INITS = ("lscm", "tutte", "random", "isomap", "laplacian")
 
 # Landmarks of the Isomap start (de Silva and Tenenbaum 2003). Time is linear in them; on beetle
 # 50 / 100 / 200 landmarks gave 19 / 17 / 18 flipped start triangles (of 38,656), so 64.

@@ -30,12 +30,10 @@ from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 from uvbake.io.atomic import OutputSet, atomic_write_bytes
+from uvbake.io.formats import TEXTURED_EXTENSIONS
 from uvbake.io.gltf import glb_bytes
 from uvbake.io.obj import save_obj
 from uvbake.io.uvread import read_uv
-
-#: Extensions save_textured writes.
-TEXTURED_EXTENSIONS = (".obj", ".glb")
 
 
 def save_textured(path: str | os.PathLike[str], V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, image: Any, *,

@@ -35,15 +35,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
+from uvbake.io.formats import MESH_EXTENSIONS
 from uvbake.io.meshdata import MeshData, _check_labels, _make
 from uvbake.io.obj import load_obj_uv
 from uvbake.io.ply import BOM, _ply_face_property_names, check_ply_complete, read_ply_elements
 
 #: Face property names read as per-face segment labels, first found wins.
 LABEL_NAMES = ("segment", "label", "segment_id", "chart", "chart_id", "region")
-
-#: File extensions load_mesh accepts (OBJ is parsed here, the rest by trimesh).
-MESH_EXTENSIONS = (".ply", ".obj", ".off", ".glb", ".gltf", ".stl")
 
 
 # --------------------------------------------------------------------------------------------------
