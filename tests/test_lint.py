@@ -3,6 +3,7 @@
 import ast
 import importlib.util
 import os
+import re
 import subprocess
 import sys
 
@@ -144,3 +145,42 @@ def test_help_does_not_import_the_numerical_stack(entry, command):
     assert proc.returncode == 0, proc.stderr
     assert "usage:" in proc.stdout                      # the help was printed
     assert proc.stdout.rstrip().splitlines()[-1] == "HEAVY []", proc.stdout[-500:]
+
+
+def _readme_layout():
+    """``{entry path: its description}`` of the uvbake/ entries of README's layout section."""
+    block = (REPO / "README.md").read_text().split("\n## Layout\n", 1)[1].split("\n## ", 1)[0]
+    entries, current = {}, None
+    for line in block.splitlines():
+        m = re.match(r" {4}(\S+) {2,}(.*)", line)
+        if m:
+            current = m.group(1)
+            entries[current] = m.group(2)
+        elif current and line.startswith(" " * 30):
+            entries[current] += " " + line.strip()
+        else:
+            current = None
+    return {k: v for k, v in entries.items() if k.startswith("uvbake/")}
+
+
+def test_readme_layout_names_every_module_and_only_real_ones():
+    named, unknown = set(), []
+    for entry, text in _readme_layout().items():
+        root = REPO / entry
+        if not entry.endswith("/"):
+            named.add(root)
+            continue
+        for token in re.findall(r"[\w./]*\w\.(?:py|json)\b", text):
+            hits = [REPO / token] if token.startswith("uvbake/") else sorted(root.rglob(token))
+            hits = [h for h in hits if h.is_file()]
+            if len(hits) != 1:
+                unknown.append(f"{entry}: {token}")
+            named.update(hits)
+    modules = {p for p in (REPO / "uvbake").rglob("*.py") if p.name != "__init__.py"}
+    modules |= set((REPO / "uvbake").rglob("*.json"))
+    assert not unknown, f"README layout names files that do not exist (or twice): {unknown}"
+    missing = sorted(str(p.relative_to(REPO)) for p in modules - named)
+    assert not missing, f"README layout does not name: {missing}"
+    packages = {p.parent for p in (REPO / "uvbake").glob("*/__init__.py")}
+    entries = {REPO / e for e in _readme_layout() if e.endswith("/")}
+    assert packages == entries, (packages ^ entries)
