@@ -287,25 +287,13 @@ def soup_like(F: np.ndarray, n: int) -> bool:
     return bool(np.count_nonzero(cnt == 1) > 0.5 * len(cnt))
 
 
-@dataclass
-class _Pass:
-    """The mesh as one pass changes it: fidx/vidx give the input ids (examples are reported in them)."""
-
-    V: np.ndarray
-    F: np.ndarray
-    fidx: np.ndarray
-    vidx: np.ndarray
-    actions: list = field(default_factory=list)
-    warns: list = field(default_factory=list)
-
-
 def _one_pass(V: np.ndarray, F: np.ndarray, fidx: np.ndarray, vidx: np.ndarray, min_component_faces: int | None,
               weld_tol: float, weld: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list, list]:
     """One pass of every step; fidx/vidx give the input ids (examples are reported in them).
 
     Returns V, F, face_index, vertex_index (into the original input), actions, warnings.
     """
-    p = _Pass(V, F, fidx, vidx)
+    p = RepairResult(V, F, fidx, vidx)                # the mesh as the steps change it
     _drop_nonfinite(p)
     if len(p.F) and weld:
         _weld_step(p, weld_tol)
@@ -315,23 +303,23 @@ def _one_pass(V: np.ndarray, F: np.ndarray, fidx: np.ndarray, vidx: np.ndarray, 
     if len(p.F):
         _drop_specks(p, min_component_faces)
     _drop_unreferenced(p)
-    return p.V, p.F, p.fidx, p.vidx, p.actions, p.warns
+    return p.V, p.F, p.face_index, p.vertex_index, p.actions, p.warnings
 
 
-def _drop_nonfinite(p):
+def _drop_nonfinite(p: RepairResult) -> None:
     """Step 1: triangles touching a vertex with NaN or infinite coordinates."""
     bad_v = ~np.isfinite(p.V).all(axis=1)
     if bad_v.any():
         drop = bad_v[p.F].any(axis=1)
         if drop.any():
             p.actions.append({"kind": "drop_nonfinite_faces", "count": int(drop.sum()),
-                              "examples": _ex(p.fidx[drop]), "vertices": _ex(np.flatnonzero(bad_v))})
-            p.warns.append(f"dropped {int(drop.sum())} triangles with NaN/infinite vertex coordinates "
-                           f"(triangles {_list(p.fidx[drop])})")
-            p.F, p.fidx = p.F[~drop], p.fidx[~drop]
+                              "examples": _ex(p.face_index[drop]), "vertices": _ex(np.flatnonzero(bad_v))})
+            p.warnings.append(f"dropped {int(drop.sum())} triangles with NaN/infinite vertex coordinates "
+                           f"(triangles {_list(p.face_index[drop])})")
+            p.F, p.face_index = p.F[~drop], p.face_index[~drop]
 
 
-def _weld_step(p, weld_tol):
+def _weld_step(p: RepairResult, weld_tol: float) -> None:
     """Step 2: weld coincident boundary vertices that zip boundary edges (a soup, or when asked: a cut
     the user made, with duplicated positions along it, is their seam)."""
     n = len(p.V)
@@ -339,11 +327,11 @@ def _weld_step(p, weld_tol):
     moved = np.flatnonzero(rep != np.arange(n))
     if len(moved):
         p.actions.append({"kind": "weld_vertices", "count": int(len(moved)),
-                          "examples": [[int(p.vidx[a]), int(p.vidx[rep[a]])] for a in moved[:5]]})
+                          "examples": [[int(p.vertex_index[a]), int(p.vertex_index[rep[a]])] for a in moved[:5]]})
         p.F = rep[p.F]
 
 
-def _drop_degenerate(p):
+def _drop_degenerate(p: RepairResult) -> None:
     """Step 3: degenerate triangles."""
     F = p.F
     X = p.V[F]
@@ -354,24 +342,24 @@ def _drop_degenerate(p):
     deg = rpt | (dbl <= 1e-12 * np.maximum(e.max(axis=1), scale) ** 2)
     if deg.any():
         p.actions.append({"kind": "drop_degenerate_faces", "count": int(deg.sum()),
-                          "examples": _ex(p.fidx[deg]), "repeated_vertex": int(rpt.sum())})
-        p.F, p.fidx = F[~deg], p.fidx[~deg]
+                          "examples": _ex(p.face_index[deg]), "repeated_vertex": int(rpt.sum())})
+        p.F, p.face_index = F[~deg], p.face_index[~deg]
 
 
-def _drop_duplicates(p):
+def _drop_duplicates(p: RepairResult) -> None:
     """Step 4: duplicated triangles (the first is kept)."""
     _, first = np.unique(np.sort(p.F, axis=1), axis=0, return_index=True)
     if len(first) < len(p.F):
         keep = np.zeros(len(p.F), bool)
         keep[first] = True
         p.actions.append({"kind": "drop_duplicate_faces", "count": int((~keep).sum()),
-                          "examples": _ex(p.fidx[~keep])})
-        p.F, p.fidx = p.F[keep], p.fidx[keep]
+                          "examples": _ex(p.face_index[~keep])})
+        p.F, p.face_index = p.F[keep], p.face_index[keep]
 
 
-def _split_nonmanifold(p):
+def _split_nonmanifold(p: RepairResult) -> None:
     """Steps 5-6: non-manifold edges and vertices: one vertex per fan."""
-    F, n, vidx = p.F, len(p.V), p.vidx
+    F, n, vidx = p.F, len(p.V), p.vertex_index
     fan, nm_edges = _nonmanifold(p.V, F, n)
     G, vmap, split_v = _vertices_per_fan(F, n, fan)
     if len(vmap) <= n:
@@ -393,16 +381,16 @@ def _split_nonmanifold(p):
     if len(nm_edges):
         p.actions.append({"kind": "split_nonmanifold_edges", "count": int(len(nm_edges)),
                           "examples": [[int(a), int(b)] for a, b in vidx[nm_edges[:5]]]})
-        p.warns.append(f"split {len(nm_edges)} non-manifold edges (edges "
+        p.warnings.append(f"split {len(nm_edges)} non-manifold edges (edges "
                        f"{', '.join(f'({a},{b})' for a, b in vidx[nm_edges[:5]])}) by detaching triangles")
     p.actions.append({"kind": "split_nonmanifold_vertices", "count": int(len(vmap) - n),
                       "examples": _ex(vidx[split_v])})
-    p.F, p.V, p.vidx = G, p.V[vmap], vidx[vmap]
+    p.F, p.V, p.vertex_index = G, p.V[vmap], vidx[vmap]
 
 
-def _orient(p):
+def _orient(p: RepairResult) -> None:
     """Step 7: consistent winding (a non-orientable piece is cut where the parity disagrees)."""
-    F, n, fidx = p.F, len(p.V), p.fidx
+    F, n, fidx = p.F, len(p.V), p.face_index
     flip, vhi, vhj, vfi, vfj, okhi, okhj = _orient_parity(F, n)
     if len(vfi):
         # non-orientable: cut along the edges where the parity disagrees, then orient again
@@ -415,16 +403,16 @@ def _orient(p):
                              "Moebius-like strip); cut it there or give those triangles their own segment label")
         p.actions.append({"kind": "cut_nonorientable", "count": int(len(vfi)),
                           "examples": _ex(np.unique(fidx[vfi]))})
-        p.warns.append(f"cut a non-orientable piece along {len(vfi)} edges (at triangles "
+        p.warnings.append(f"cut a non-orientable piece along {len(vfi)} edges (at triangles "
                        f"{_list(np.unique(fidx[vfi]))}) so it can be oriented")
-        p.F, p.V, p.vidx, flip = G, p.V[vmap], p.vidx[vmap], flip2
+        p.F, p.V, p.vertex_index, flip = G, p.V[vmap], p.vertex_index[vmap], flip2
     if flip.any():
         p.actions.append({"kind": "flip_faces", "count": int(flip.sum()), "examples": _ex(fidx[flip])})
         p.F = p.F.copy()
         p.F[flip] = p.F[flip][:, [0, 2, 1]]
 
 
-def _drop_specks(p, min_component_faces):
+def _drop_specks(p: RepairResult, min_component_faces: int | None) -> None:
     """Step 8: pieces with fewer than ``min_component_faces`` triangles (never the largest piece)."""
     F, mm = p.F, len(p.F)
     thr = min(10, mm // 1000) if min_component_faces is None else min_component_faces
@@ -446,23 +434,23 @@ def _drop_specks(p, min_component_faces):
         drop[:] = False
     if drop.any():
         p.actions.append({"kind": "drop_small_components", "count": int(small.sum()),
-                          "faces": int(drop.sum()), "examples": _ex(p.fidx[drop]),
+                          "faces": int(drop.sum()), "examples": _ex(p.face_index[drop]),
                           "min_component_faces": int(thr)})
-        p.warns.append(f"dropped {int(small.sum())} small pieces (< {thr} triangles each, "
-                       f"{int(drop.sum())} triangles: {_list(p.fidx[drop])})")
-        p.F, p.fidx = F[~drop], p.fidx[~drop]
+        p.warnings.append(f"dropped {int(small.sum())} small pieces (< {thr} triangles each, "
+                       f"{int(drop.sum())} triangles: {_list(p.face_index[drop])})")
+        p.F, p.face_index = F[~drop], p.face_index[~drop]
 
 
-def _drop_unreferenced(p):
+def _drop_unreferenced(p: RepairResult) -> None:
     """Step 9: unreferenced vertices."""
     used = np.zeros(len(p.V), bool)
     used[p.F.ravel()] = True
     if not used.all():
         p.actions.append({"kind": "drop_unreferenced_vertices", "count": int((~used).sum()),
-                          "examples": _ex(p.vidx[~used])})
+                          "examples": _ex(p.vertex_index[~used])})
         new = np.cumsum(used) - 1
         p.F = new[p.F]
-        p.V, p.vidx = p.V[used], p.vidx[used]
+        p.V, p.vertex_index = p.V[used], p.vertex_index[used]
 
 
 def _nonmanifold_full_detach(F, n):
