@@ -159,7 +159,7 @@ def bake_vertex_colors(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, vertex_
     return _finish(texel, np.rint(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8), size, dilate_px, background)
 
 
-def dilate(image: np.ndarray, mask: np.ndarray, *, iterations: float | None) -> np.ndarray:
+def dilate(image: np.ndarray, mask: np.ndarray, *, iterations: int | None) -> np.ndarray:
     """Push colours outward from covered texels into the gutter.
 
     Parameters

@@ -240,9 +240,15 @@ def _targets(paths: _Outputs) -> list[tuple[str, Path]]:
     return targets
 
 
+def unwrap(source: Any, **options: Any) -> Any:
+    """:func:`uvbake.unwrap`, imported when a run starts (the parser stays light); the one call a run makes."""
+    from uvbake.atlas.pipeline import unwrap as pipeline_unwrap
+
+    return pipeline_unwrap(source, **options)
+
+
 def _solve(args: argparse.Namespace, mode: str | None) -> Any:
     from uvbake.analysis.crosscheck import cross_check_charts
-    from uvbake.atlas.pipeline import unwrap
 
     bar = Progress(quiet=args.quiet)
     result = unwrap(args.mesh, alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol,
