@@ -14,8 +14,10 @@ cannot swallow the flag: the next poll raises again.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import threading
+from collections.abc import Iterator
 from typing import Any
 
 from uvbake.errors import Cancelled
@@ -24,10 +26,10 @@ __all__ = ["Cancelled", "cancel", "check_cancelled", "cancelled_signal", "instal
            "reset", "signals_deferred", "exit_code", "os_exit", "register_temp", "unregister_temp"]
 
 _event = threading.Event()
-_signum = [None]
+_signum: list[int | None] = [None]
 
 
-def cancel(signum=signal.SIGINT) -> None:
+def cancel(signum: int = signal.SIGINT) -> None:
     """Set the flag (as a signal would)."""
     _signum[0] = signum
     _event.set()
@@ -44,7 +46,7 @@ def is_cancelled() -> bool:
     return _event.is_set()
 
 
-def cancelled_signal():
+def cancelled_signal() -> int | None:
     """The signal number that cancelled the run, or None."""
     return _signum[0] if _event.is_set() else None
 
@@ -57,12 +59,10 @@ def check_cancelled() -> None:
 
 def os_exit(code: int) -> None:
     """End the process now (the command line after a signal: worker threads are not waited for)."""
-    import os
-
     os._exit(code)
 
 
-def exit_code(signum) -> int:
+def exit_code(signum: int | None) -> int:
     """The shell's convention: 128 + signal number (130 for SIGINT, 143 for SIGTERM)."""
     return 128 + int(signum or signal.SIGINT)
 
@@ -71,12 +71,12 @@ _temps: set[str] = set()          # temporary files being written, removed by th
 _watchdog: dict[str, Any] = {"after_s": None, "message": None}
 
 
-def register_temp(path) -> None:
+def register_temp(path: str | os.PathLike[str]) -> None:
     """A temporary file that must not outlive a cancelled run (see :func:`install_signal_handlers`)."""
     _temps.add(str(path))
 
 
-def unregister_temp(path) -> None:
+def unregister_temp(path: str | os.PathLike[str]) -> None:
     _temps.discard(str(path))
 
 
@@ -92,7 +92,6 @@ def _handler(signum, frame):
 def _hard_exit(signum):
     """The process's last resort: the main thread did not finish within the grace period (it is
     stuck in a long C call, or a library swallowed the exception): remove temporaries and exit."""
-    import os
     import sys
     import time
 
@@ -107,7 +106,7 @@ def _hard_exit(signum):
     os._exit(exit_code(signum))
 
 
-def install_signal_handlers(*, exit_after_s=None, message=None) -> bool:
+def install_signal_handlers(*, exit_after_s: float | None = None, message: str | None = None) -> bool:
     """SIGINT and SIGTERM both cancel the run; False when not in the main thread (nothing done).
 
     With ``exit_after_s`` (a command line's process, never a library caller's), a watchdog thread
@@ -123,7 +122,7 @@ def install_signal_handlers(*, exit_after_s=None, message=None) -> bool:
 
 
 @contextlib.contextmanager
-def signals_deferred():
+def signals_deferred() -> Iterator[None]:
     """Hold SIGINT/SIGTERM back (they stay pending) while a short all-or-nothing step runs."""
     sigs = {signal.SIGINT, signal.SIGTERM}
     try:

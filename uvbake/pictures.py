@@ -12,7 +12,10 @@ bytes on every machine.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 
@@ -23,7 +26,8 @@ FONT_PX = 13
 LINE_PX = 17
 
 
-def atlas_image(source, F=None, chart_ids=None, *, size_px=512, legend=True, report=None):
+def atlas_image(source: Any, F: ArrayLike | None = None, chart_ids: ArrayLike | None = None, *, size_px: int = 512,
+                legend: bool = True, report: dict[str, Any] | None = None) -> np.ndarray:
     """The atlas coloured by chart, seams drawn, with a legend (chart count, packing, worst distortion).
 
     Parameters
@@ -69,7 +73,7 @@ def atlas_image(source, F=None, chart_ids=None, *, size_px=512, legend=True, rep
     return with_legend(img, legend_lines(verdict.to_dict(), report))
 
 
-def legend_lines(verdict, report=None):
+def legend_lines(verdict: dict[str, Any], report: dict[str, Any] | None = None) -> list[str]:
     """The legend's lines from a validation report dict (and an unwrap report, when there is one)."""
     n_charts = verdict.get("n_charts")
     state = "valid" if verdict.get("valid") else (f"NOT valid: {verdict.get('n_flipped', 0)} flipped (blue), "
@@ -90,7 +94,7 @@ def legend_lines(verdict, report=None):
     return lines
 
 
-def with_legend(img, lines):
+def with_legend(img: np.ndarray, lines: list[str]) -> np.ndarray:
     """``img`` with the text ``lines`` in a white strip below it (same width)."""
     from PIL import Image, ImageDraw, ImageFont
 
@@ -122,7 +126,7 @@ def _wrap(line, font, width):
     return out + [cur]
 
 
-def seam_edges(corner_uv):
+def seam_edges(corner_uv: np.ndarray) -> np.ndarray:
     """(k,2,2) UV segments of chart boundaries: face edges whose UV endpoints no other face shares.
 
     An interior edge of a chart is used by two faces with the same two UVs; a seam edge has different

@@ -34,29 +34,22 @@ import os
 import subprocess
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError, UvbakeError
 from uvbake.pictures import atlas_image  # noqa: F401  (the 2D atlas picture beside the 3D preview)
+from uvbake.views import DEFAULT_VIEWS, LIGHTING, TURNTABLE_ELEVATION_DEG, VIEWS  # noqa: F401  (named here too)
 
 
 class RenderError(UvbakeError, RuntimeError):
     """The offscreen renderer could not run; the message says what to install or set."""
 
 
-#: name -> (direction from the mesh centre to the eye, up vector); y-up camera frame (OpenGL/glTF).
-VIEWS = {
-    "front": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
-    "back": ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
-    "angle": ((1.0, 1.0, 1.0), (0.0, 1.0, 0.0)),
-}
-DEFAULT_VIEWS = ("front", "back", "angle")
-#: lighting modes: "unlit" shows the texture's own values; "lit" shades it with a sun light and an
-#: ambient term (shape reads better; colours are no longer the texture's bytes)
-LIGHTING = ("unlit", "lit")
-TURNTABLE_ELEVATION_DEG = 20.0
 LIT_SUN, LIT_AMBIENT = 200000.0, 60000.0      # Filament lux; chosen by eye on the sample scene
 FOV_DEG = 30.0
 SUPERSAMPLE = 2
@@ -66,8 +59,10 @@ SEPARATOR_RGB = (200, 200, 200)
 _BASE_COLOR = 1.055 * 2.0 ** (1.0 / 2.4) - 0.055
 
 
-def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=256, views=DEFAULT_VIEWS,
-            background=(255, 255, 255), lighting="unlit", vertex_colors=None, isolate=True, timeout_s=120.0):
+def preview(source: Any, F: ArrayLike | None = None, corner_uv: ArrayLike | None = None, image: Any = None, *,
+            path: str | os.PathLike[str] | None = None, size_px: int = 256, views: Any = DEFAULT_VIEWS,
+            background: Sequence[int] = (255, 255, 255), lighting: str = "unlit",
+            vertex_colors: ArrayLike | None = None, isolate: bool = True, timeout_s: float = 120.0) -> np.ndarray:
     """Render the textured mesh from fixed cameras into one image.
 
     Parameters
@@ -112,7 +107,8 @@ def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=25
     bg = np.asarray(background)
     if bg.shape != (3,) or np.any(bg < 0) or np.any(bg > 255):
         raise InputError(f"background={background!r} must be an RGB triple of values 0..255")
-    params = dict(size_px=int(size_px), views=directions, background=[int(b) for b in bg], lighting=lighting)
+    params: dict[str, Any] = dict(size_px=int(size_px), views=directions, background=[int(b) for b in bg],
+                                  lighting=lighting)
     if vertex_colors is not None:
         vertex_colors = np.asarray(vertex_colors, np.float64)
         if vertex_colors.ndim != 2 or vertex_colors.shape[0] != len(V) or vertex_colors.shape[1] < 3:
@@ -127,7 +123,7 @@ def preview(source, F=None, corner_uv=None, image=None, *, path=None, size_px=25
     return out
 
 
-def _inputs(source, F, corner_uv, image):
+def _inputs(source: Any, F: Any, corner_uv: Any, image: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     if hasattr(source, "corner_uv") and hasattr(source, "F"):
         V, F, corner_uv, image = source.V, source.F, source.corner_uv, source.image if image is None else image
     else:
@@ -157,14 +153,14 @@ def _check_image(image):
     return np.ascontiguousarray(image)
 
 
-def save_png(path, img):
+def save_png(path: str | os.PathLike[str], img: ArrayLike) -> Path:
     """Write an RGB uint8 image as PNG, atomically (see :func:`uvbake.io.export.save_png`)."""
     from uvbake.io.export import save_png as _save_png
 
     return _save_png(path, np.asarray(img, dtype=np.uint8))
 
 
-def view_directions(views):
+def view_directions(views: Any) -> list[list[list[float]]]:
     """[[direction, up], ...] (JSON-ready lists) of view names, or of "turntable:N"."""
     if isinstance(views, str):
         views = (views,)
@@ -183,7 +179,7 @@ def view_directions(views):
     return [[list(VIEWS[v][0]), list(VIEWS[v][1])] for v in views]
 
 
-def cameras(V, views=DEFAULT_VIEWS):
+def cameras(V: np.ndarray, views: Any = DEFAULT_VIEWS) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
     """(centre, [(eye, up), ...]) of the cameras: the bounding sphere fills the view.
 
     ``views``: names from :data:`VIEWS`, "turntable:N", or [direction, up] pairs."""
@@ -206,7 +202,9 @@ def _linear_to_srgb_u8(img):
     return np.clip(np.rint(y * 255.0), 0, 255).astype(np.uint8)
 
 
-def render_views(V, F, corner_uv, image, *, size_px, views, background, lighting="unlit", vertex_colors=None):
+def render_views(V: np.ndarray, F: np.ndarray, corner_uv: np.ndarray, image: np.ndarray, *, size_px: int, views: Any,
+                 background: Sequence[int], lighting: str = "unlit", vertex_colors: np.ndarray | None = None
+                 ) -> np.ndarray:
     """Render in this process (Open3D must be importable and able to start its engine)."""
     import open3d as o3d
 

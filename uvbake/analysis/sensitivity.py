@@ -38,10 +38,14 @@ alpha's solution; the record of each alpha says where it started (``started_from
 from __future__ import annotations
 
 import json
+import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy
@@ -77,7 +81,7 @@ class AlphaRecord:
     history: np.ndarray
     time_s: float
 
-    def to_dict(self, *, with_history=True):
+    def to_dict(self, *, with_history: bool = True) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in ("alpha", "energy", "energy_area", "energy_angle", "iterations",
                                            "evaluations", "n_flipped", "overlaps", "converged",
                                            "grad_norm", "uv_area_ratio", "stop_reasons", "started_from",
@@ -106,14 +110,14 @@ class SweepResult:
     recommendation: dict | None = None     # set by recommend_alpha (``uvbake sweep --recommend``)
 
     @property
-    def alphas(self):
+    def alphas(self) -> np.ndarray:
         return np.array([r.alpha for r in self.records])
 
     @property
-    def energies(self):
+    def energies(self) -> np.ndarray:
         return np.array([r.energy for r in self.records])
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, Any]:
         return {
             "init": self.init,
             "warm_start": self.warm_start,
@@ -130,7 +134,7 @@ class SweepResult:
             ],
         }
 
-    def save_json(self, path):
+    def save_json(self, path: str | os.PathLike[str]) -> None:
         text = json.dumps(_clean(self.to_dict()), indent=2, allow_nan=False)
         atomic_write_bytes(path, (text + "\n").encode())
 
@@ -138,7 +142,7 @@ class SweepResult:
                    "energy_area", "energy_angle", "iterations", "evaluations", "n_flipped", "overlaps",
                    "converged", "grad_norm", "uv_area_ratio", "collapsed", "started_from", "time_s")
 
-    def save_csv(self, path):
+    def save_csv(self, path: str | os.PathLike[str]) -> None:
         lines = [",".join(self.CSV_COLUMNS)]
         for row in self.to_dict()["records"]:
             cells = []
@@ -148,7 +152,7 @@ class SweepResult:
             lines.append(",".join(cells))
         atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
 
-    def plot(self, path, *, title=None, dpi=120):
+    def plot(self, path: str | os.PathLike[str], *, title: str | None = None, dpi: int = 120) -> None:
         """Write a PNG: F per iteration for every alpha (log scale) and F*, S against alpha."""
         require_matplotlib()
         import matplotlib
@@ -212,7 +216,7 @@ class SweepResult:
         atomic_write_bytes(path, buf.getvalue())
 
 
-def distortions(result):
+def distortions(result: SweepResult) -> tuple[np.ndarray, np.ndarray]:
     """Area and angle distortion per alpha (sums of D_area and D_angle over the triangles at each
     optimum), each divided by its largest value over the sweep so the two are comparable."""
     da = np.array([r.energy_area for r in result.records], dtype=float)
@@ -220,7 +224,7 @@ def distortions(result):
     return da / max(da.max(), 1e-300), dg / max(dg.max(), 1e-300)
 
 
-def recommend_alpha(result):
+def recommend_alpha(result: SweepResult) -> dict[str, Any]:
     """The alpha to use, and why: among the alphas whose per-chart maps have the fewest flipped
     triangles plus overlapping pairs (each of those is what makes the atlas stage add a chart; zero
     means the atlas validates with no extra chart) and are not collapsed, the one with the least
@@ -254,7 +258,7 @@ def recommend_alpha(result):
     return result.recommendation
 
 
-def require_matplotlib():
+def require_matplotlib() -> None:
     try:
         import matplotlib  # noqa: F401
     except ImportError:
@@ -262,7 +266,7 @@ def require_matplotlib():
                          "(or leave out --plot)") from None
 
 
-def parse_alphas(text):
+def parse_alphas(text: str) -> np.ndarray:
     """``"0:1:0.1"`` (start:stop:step, stop included) or ``"0.1,0.5,0.9"`` -> sorted unique floats in [0, 1]."""
     text = str(text).strip()
     try:
@@ -287,7 +291,7 @@ def parse_alphas(text):
     return check_alphas(vals)
 
 
-def check_alphas(alphas):
+def check_alphas(alphas: ArrayLike) -> np.ndarray:
     a = np.asarray(alphas, dtype=np.float64).ravel()
     if a.size == 0:
         raise InputError("no alpha given; pass at least one weight in [0, 1], e.g. 0:1:0.1")
@@ -297,7 +301,7 @@ def check_alphas(alphas):
     return np.unique(a)
 
 
-def finite_difference(x, y):
+def finite_difference(x: ArrayLike, y: ArrayLike) -> np.ndarray:
     """dy/dx on an increasing, possibly uneven grid: three-point formulas, second order.
 
     Inside: the central formula with unequal spacings h1 = x_i - x_{i-1}, h2 = x_{i+1} - x_i,
@@ -331,7 +335,8 @@ def _parabola_slope(x, y, at):
             + y2 * (2 * at - x0 - x1) / ((x2 - x0) * (x2 - x1)))
 
 
-def relative_sensitivity(alphas, energies, derivative, n_triangles=1):
+def relative_sensitivity(alphas: ArrayLike, energies: ArrayLike, derivative: ArrayLike,
+                         n_triangles: int = 1) -> np.ndarray:
     """S = alpha / F* * dF*/dalpha, 0 at alpha = 0, NaN where F* is zero to rounding."""
     a = np.asarray(alphas, dtype=np.float64)
     E = np.asarray(energies, dtype=np.float64)
@@ -343,8 +348,9 @@ def relative_sensitivity(alphas, energies, derivative, n_triangles=1):
     return S
 
 
-def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="lm", tol=1e-8,
-          max_iter=1000, seed=0, overlaps=True, progress=None):
+def sweep(V: ArrayLike, F: ArrayLike, alphas: ArrayLike, *, labels: ArrayLike | None = None, init: str = "lscm",
+          warm_start: bool = False, backend: str = "lm", tol: float = 1e-8, max_iter: int = 1000, seed: int = 0,
+          overlaps: bool = True, progress: Callable[[int, int, AlphaRecord], None] | None = None) -> SweepResult:
     """Solve the mesh for every alpha and compute the relative sensitivity S(alpha).
 
     Parameters
@@ -377,7 +383,7 @@ def sweep(V, F, alphas, *, labels=None, init="lscm", warm_start=False, backend="
     counter = _OverlapCounter(overlaps, notes)
     area3d = [float(np.sum(triangle_areas(c.V, c.F))) for c in charts]
     m_total = int(sum(len(c.F) for c in charts))
-    prev = [None] * len(charts)
+    prev: list[np.ndarray | None] = [None] * len(charts)
     prev_alpha = None
     records = []
     for k, alpha in enumerate(alphas):

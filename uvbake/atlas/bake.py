@@ -38,8 +38,10 @@ coarser levels is the packer's gutter's business; background never enters.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 
@@ -71,8 +73,10 @@ DEFAULT_SQUARES_ACROSS = 32
 # public API
 
 
-def bake_checker(V, F, corner_uv, *, texture_size_px=1024, square_size=None, texel_size_world=None,
-                 colors=((235, 235, 235), (40, 40, 40)), dilate_px=None, background=(0, 0, 0)):
+def bake_checker(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, *, texture_size_px: int = 1024,
+                 square_size: float | None = None, texel_size_world: float | str | None = None,
+                 colors: ArrayLike = ((235, 235, 235), (40, 40, 40)), dilate_px: int | None = None,
+                 background: Sequence[int] = (0, 0, 0)) -> np.ndarray:
     """Bake a UV-space checkerboard: equal squares wherever the map is undistorted.
 
     uvbake packs every chart at one scale, so a checker of fixed size in UV space shows squares of one
@@ -126,8 +130,9 @@ def bake_checker(V, F, corner_uv, *, texture_size_px=1024, square_size=None, tex
     return _finish(texel, np.clip(np.rint(colors), 0, 255).astype(np.uint8)[parity], size, dilate_px, background)
 
 
-def bake_vertex_colors(V, F, corner_uv, vertex_colors, *, texture_size_px=1024, dilate_px=None,
-                       background=(0, 0, 0)):
+def bake_vertex_colors(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, vertex_colors: ArrayLike, *,
+                       texture_size_px: int = 1024, dilate_px: int | None = None,
+                       background: Sequence[int] = (0, 0, 0)) -> np.ndarray:
     """Bake per-vertex colours into the atlas (barycentric interpolation inside each triangle).
 
     Parameters
@@ -154,7 +159,7 @@ def bake_vertex_colors(V, F, corner_uv, vertex_colors, *, texture_size_px=1024, 
     return _finish(texel, np.rint(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8), size, dilate_px, background)
 
 
-def dilate(image, mask, *, iterations):
+def dilate(image: np.ndarray, mask: np.ndarray, *, iterations: int | None) -> np.ndarray:
     """Push colours outward from covered texels into the gutter.
 
     Parameters
@@ -192,7 +197,8 @@ def dilate(image, mask, *, iterations):
 # internals
 
 
-def _check_inputs(V, F, corner_uv, texture_size_px):
+def _check_inputs(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, texture_size_px: int
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F)
     corner_uv = np.asarray(corner_uv, dtype=np.float64)
@@ -260,7 +266,7 @@ def _texel_size_world(V, F, corner_uv, size):
     return math.sqrt(area3 / area2) / size
 
 
-def bake_corner_attribute(corner_uv, values, size):
+def bake_corner_attribute(corner_uv: np.ndarray, values: np.ndarray, size: int) -> np.ndarray:
     """Bake a per-corner attribute: ``(size, size, k)`` float64, NaN where uncovered.
 
     Parameters
@@ -329,7 +335,8 @@ def _planes(corner_uv, values, size):
             np.einsum("mc,mck->mk", C, values))
 
 
-def rasterize(corner_uv, size, *, margin_px=BAKE_MARGIN_PX):
+def rasterize(corner_uv: np.ndarray, size: int, *, margin_px: float = BAKE_MARGIN_PX
+              ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """Which triangle covers every texel centre, and where texels within ``margin_px`` outside clamp to.
 
     Parameters

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 
 import numpy as np
 
 
-def boundary_halfedges(F):
+def boundary_halfedges(F: np.ndarray) -> np.ndarray:
     """Oriented boundary edges ``(b,2)`` of a triangle set: the half-edges without a twin."""
     E = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2).astype(np.int64)
     n = int(E.max()) + 1 if len(E) else 1
@@ -16,7 +17,7 @@ def boundary_halfedges(F):
     return E[cnt[inv.ravel()] == 1]
 
 
-def boundary_segments(uv, F):
+def boundary_segments(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Boundary edges of a chart as segments (b,2,2): edges used by exactly one triangle."""
     return uv[boundary_halfedges(F)]
 
@@ -63,7 +64,7 @@ def _points_in_triangles(P, uv, F):
     return out
 
 
-def min_chart_distance(uvs, faces):
+def min_chart_distance(uvs: Sequence[np.ndarray], faces: Sequence[np.ndarray]) -> float:
     """Exact minimum distance between the triangles of different charts (0 when two charts overlap).
 
     Two disjoint planar triangle sets are at the distance of their closest boundary segments; they

@@ -7,9 +7,11 @@ docs/decisions/pack.md.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-from uvbake.atlas.shapepack import ShapePacking
+from uvbake.atlas.shapepack import ShapePacker, ShapePacking
 
 
 def _coarse_factor(width, height, coarse_px):
@@ -42,8 +44,9 @@ def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
     return lo, lo_pack
 
 
-def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, fine_packs=2, guess=None,
-              beat_guess=False):
+def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, coarse_px: int = 256,
+              rel_tol: float = 4e-3, fine_packs: int = 2, guess: float | None = None,
+              beat_guess: bool = False) -> ShapePacking | None:
     """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
 
     Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
@@ -91,7 +94,8 @@ def fit_scale(packer, width, height, gutter_px, *, coarse_px=256, rel_tol=4e-3, 
     return p
 
 
-def scale_to_border(packer, p, width, height, gutter_px, c=1, coarse_gutter=None):
+def scale_to_border(packer: ShapePacker, p: ShapePacking, width: int, height: int, gutter_px: int, c: int = 1,
+                    coarse_gutter: int | None = None) -> ShapePacking | None:
     """The packing ``p`` (made on a raster ``c`` times coarser with gutter ``coarse_gutter``) scaled about
     the atlas origin until a chart meets the border margin of a ``width x height`` atlas; None when the
     scaled layout would break the gutter.
@@ -115,7 +119,8 @@ def scale_to_border(packer, p, width, height, gutter_px, c=1, coarse_gutter=None
                         height_used=int(np.ceil((hi[1] - lo[1]) * c * k + 2 * m)), complete=p.complete)
 
 
-def fit_width(packer, width, height, gutter_px, guess, *, coarse_px=256, packs=5, floor=None, rounds=2):
+def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, guess: float, *, coarse_px: int = 256,
+              packs: int = 5, floor: float | None = None, rounds: int = 2) -> ShapePacking | None:
     """Largest common density found by packing the charts once rasterised, in strips of several widths.
 
     The charts are rasterised once, ``c`` times coarser than the atlas (as in fit_scale), at a density
@@ -196,7 +201,8 @@ def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor):
     return best, best_w
 
 
-def grow_square(packer, gutter_px, density, *, quantum=4, max_side=16384):
+def grow_square(packer: ShapePacker, gutter_px: int, density: float, *, quantum: int = 4,
+                max_side: int = 16384) -> tuple[int | None, Any]:
     """Smallest square side (a multiple of ``quantum``) whose strip holds every chart at ``density``.
 
     Returns (side, ShapePacking) or (None, side needed at least) when it exceeds ``max_side``.
@@ -215,7 +221,8 @@ def grow_square(packer, gutter_px, density, *, quantum=4, max_side=16384):
     return None, side
 
 
-def grow_rectangle(packer, gutter_px, density, *, quantum=4, max_side=16384):
+def grow_rectangle(packer: ShapePacker, gutter_px: int, density: float, *, quantum: int = 4,
+                   max_side: int = 16384) -> tuple[Any, ...]:
     """Smallest-area ``width x height`` atlas (sides multiples of ``quantum``) holding every chart at
     ``density``: strips of widths ``sqrt(area) * 2^k`` (k = 0..6, at most ``max_side``) are packed (a
     strip stops once it needs more texels than the best so far) and the one needing the fewest texels

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def rotation_2d(theta):
+def rotation_2d(theta: float) -> np.ndarray:
     c, s = np.cos(theta), np.sin(theta)
     return np.array([[c, -s], [s, c]])
 
@@ -24,7 +24,7 @@ def _hull_points(P):
         return P[[int(np.argmin(c @ d)), int(np.argmax(c @ d))]]
 
 
-def min_area_rect(P):
+def min_area_rect(P: np.ndarray) -> tuple[float, float, float]:
     """Minimum-area bounding rectangle of 2D points by rotating calipers on the convex hull.
 
     Returns ``(theta, w, h)``: rotating the points by ``theta`` (counter-clockwise, radians) makes the

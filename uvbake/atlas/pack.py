@@ -38,11 +38,12 @@ chart would be counted twice; validated charts have none).
 from __future__ import annotations
 
 import numbers
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.atlas.maxrects import _RULES, _maxrects, _orders, min_area_rect, rotation_2d
 from uvbake.errors import InputError
@@ -226,7 +227,8 @@ def _check_chart(i: int, uv: Any, F: Any) -> tuple[np.ndarray, np.ndarray]:
 # ----------------------------------------------------------------------------- own MaxRects packer
 
 
-def bisect_scale(feasible, s_hi, lo=None, lo_payload=None):
+def bisect_scale(feasible: Callable[[float], Any], s_hi: float, lo: float | None = None,
+                 lo_payload: Any = None) -> tuple[Any, Any]:
     """Largest s <= s_hi with feasible(s) (assumed roughly monotone), to _REL_TOL; returns (s, payload).
 
     ``lo`` (with its ``lo_payload``) is a scale already known to be feasible; without it one is found by
@@ -347,8 +349,10 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
 
 # ------------------------------------------------------------------------------------------- API
 
-def pack_charts(chart_uvs, chart_faces, *, texture_size_px=1024, gutter_px=None, rotate=True, method="auto",
-                texel_density=None, mip_levels=None, aspect="square"):
+def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike], *,
+                texture_size_px: int | tuple[int, int] | None = 1024, gutter_px: int | None = None,
+                rotate: bool = True, method: str = "auto", texel_density: float | None = None,
+                mip_levels: int | None = None, aspect: str = "square") -> PackResult:
     """Pack charts into one atlas in [0,1]^2 at a common scale, ``gutter_px`` texels apart.
 
     Parameters
@@ -557,7 +561,8 @@ def _place_unrotated(uvs, faces, N, g):
     return s, np.zeros(len(uvs)), offset, out, None
 
 
-def corner_uvs(pack_result, chart_faces, face_index, n_faces):
+def corner_uvs(pack_result: PackResult, chart_faces: Sequence[np.ndarray], face_index: Sequence[np.ndarray],
+               n_faces: int) -> np.ndarray:
     """Per-corner atlas UVs (n_faces,3,2) of the whole mesh, the layout of Open3D's ``texture_uvs``.
 
     ``face_index[i]`` gives, for each face of chart i (in ``chart_faces[i]`` order), its index in the

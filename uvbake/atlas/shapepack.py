@@ -85,7 +85,7 @@ def _centres_in_triangles(T, h, w):
     return cy[keep], cx[keep]
 
 
-def footprint(q, F, bedges, flipped):
+def footprint(q: np.ndarray, F: np.ndarray, bedges: np.ndarray, flipped: np.ndarray) -> np.ndarray:
     """Conservative footprint of a chart whose texel coordinates ``q`` start at (2 _EPS, 2 _EPS).
 
     Parameters
@@ -149,7 +149,7 @@ def _runs(fp, raw=None):
     return dy, a, L
 
 
-def gutter_element(gutter_px):
+def gutter_element(gutter_px: int) -> np.ndarray:
     """Offsets ``(di, dj)`` of texels closer than ``gutter_px`` to texel (0, 0), as a boolean square."""
     g = int(gutter_px)
     d = np.maximum(np.abs(np.arange(-g, g + 1)) - 1, 0)
@@ -365,7 +365,8 @@ class ShapePacker:
                 fp = np.ascontiguousarray(np.rot90(fp, -1))
                 t = np.array([h - t[1], t[0]])
 
-    def pack(self, density, width, height, gutter_px, *, give_up_above=None):
+    def pack(self, density: float, width: int, height: int | None, gutter_px: int, *,
+             give_up_above: int | None = None) -> ShapePacking | None:
         """Bottom-left fill of a ``width``-texel strip (``height`` rows at most, None: unbounded).
 
         Returns a ShapePacking, or None when some chart does not fit. With ``give_up_above`` the packing
@@ -382,7 +383,7 @@ class ShapePacker:
         for i in self.order:                      # one iteration per chart; the search inside is numpy
             best = None
             for r, (fp, theta, t, runs) in enumerate(self._cached(i, density)):
-                pos = atlas.find(runs, *fp.shape, top_bound=None if best is None else best[0][0])
+                pos = atlas.find(runs, fp.shape[0], fp.shape[1], top_bound=None if best is None else best[0][0])
                 if pos is None:
                     continue
                 key = (pos[1] + fp.shape[0], pos[1], pos[0], r)
@@ -403,7 +404,7 @@ class ShapePacker:
                             height_used=atlas.top - g + m)
 
 
-def mip_gutter_px(mip_levels):
+def mip_gutter_px(mip_levels: int) -> int:
     """Gutter (texels) that keeps charts from bleeding into each other at mip levels ``0..mip_levels-1``.
 
     The count follows ``uvbake.atlas.bake.dilate_px_for_mips``. uvbake's bake colours every texel whose

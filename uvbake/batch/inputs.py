@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from uvbake.errors import InputError
-from uvbake.io.load import MESH_EXTENSIONS
+from uvbake.io.formats import MESH_EXTENSIONS
 
 MANIFEST_EXTENSIONS = (".txt", ".csv")
 

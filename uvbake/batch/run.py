@@ -257,7 +257,7 @@ def _print_dashboard(client):
         print(f"uvbake batch: Dask dashboard at {client.dashboard_link}", file=sys.stderr)
 
 
-def _remove_stale_staging(assets_dir: Path):
+def _remove_stale_staging(assets_dir: Path) -> None:
     """Half-written outputs of an interrupted run (never trusted; removed before anything runs)."""
     for d in assets_dir.rglob(f"{STAGING_PREFIX}*"):
         if d.is_dir():
@@ -285,7 +285,7 @@ def _table(rows):
     return pa.table(cols)
 
 
-def _write_summary(out: Path, table):
+def _write_summary(out: Path, table: Any) -> None:
     import pyarrow.csv as pcsv
     import pyarrow.parquet as pq
 

@@ -122,7 +122,7 @@ def process(spec: dict) -> dict:
     return row
 
 
-def _run_child(staging: Path, timeout_s):
+def _run_child(staging: Path, timeout_s: float) -> tuple[str, str | None]:
     """Run the asset of ``staging/spec.json`` in a child process; return (status, one-line error or None)."""
     log = staging / "child.log"
     _, code = _ZYGOTES.run(staging / "spec.json", timeout_s)

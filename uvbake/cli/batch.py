@@ -14,7 +14,7 @@ from uvbake.batch.run import run as run_batch
 from uvbake.cli.common import ArgumentParser
 from uvbake.cli.common import run as run_command
 from uvbake.errors import InputError
-from uvbake.flatten.starts import INITS
+from uvbake.flatten.options import BACKENDS, INITS
 
 DESCRIPTION = ("Unwrap many meshes on Dask: one task per asset, each with its own time limit; a failing,\n"
                     "crashing or timed-out asset is recorded and the rest go on. Rerunning into the same OUTDIR\n"
@@ -42,7 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("unwrap (as for 'uvbake MESH')")
     g.add_argument("--alpha", type=float, default=UNWRAP_DEFAULTS["alpha"], help="weight of area preservation in [0, 1]")
     g.add_argument("--init", default=UNWRAP_DEFAULTS["init"], choices=INITS, help="start map")
-    g.add_argument("--backend", default=UNWRAP_DEFAULTS["backend"], choices=["lm", "lbfgs"], help="solver")
+    g.add_argument("--backend", default=UNWRAP_DEFAULTS["backend"], choices=BACKENDS, help="solver")
     g.add_argument("--tol", type=float, default=UNWRAP_DEFAULTS["tol"], help="scale-free gradient norm to reach")
     g.add_argument("--max-iter", type=int, default=UNWRAP_DEFAULTS["max_iter"], help="iteration cap per chart")
     g.add_argument("--seed", type=int, default=UNWRAP_DEFAULTS["seed"], help="seed of --init random")

@@ -13,18 +13,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from uvbake.cli.common import EXIT_FAILED, EXIT_OK, ArgumentParser
 from uvbake.cli.common import run as run_command
 from uvbake.errors import InputError
 from uvbake.io.atomic import atomic_write_bytes
-from uvbake.io.export import save_png
-from uvbake.io.uvread import read_uv
-from uvbake.pictures import legend_lines, with_legend
-from uvbake.validate.candidates import _row_ids
-from uvbake.validate.core import validate
+
+if TYPE_CHECKING:                     # the readers and the validator load numpy: imported when run
+    import numpy as np
 
 __all__ = ["main", "run", "add_arguments", "load_uv_mesh"]
 
@@ -68,6 +65,10 @@ def load_uv_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     uv : (n,2) float64
     F : (m,3) int64
     """
+    import numpy as np
+
+    from uvbake.io.uvread import read_uv
+    from uvbake.validate.candidates import _row_ids
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise InputError(f"no such file: {path}; pass the path of a .obj, .glb, .gltf or .ply mesh")
@@ -93,6 +94,9 @@ def load_uv_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
 
 def run(args: argparse.Namespace) -> int:
     """``uvbake check``: the exit status is 0 when the UVs are bijective, 1 when they are not."""
+    from uvbake.io.export import save_png
+    from uvbake.pictures import legend_lines, with_legend
+    from uvbake.validate.core import validate
     uv, F = load_uv_mesh(args.path)
     for out in (args.image, args.json):
         if out and not os.path.isdir(os.path.dirname(os.path.abspath(out))):

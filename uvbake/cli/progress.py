@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import IO, Any
 
 #: tqdm format: stage, count, elapsed time, the last iteration; no rate and no ETA (see above)
 BAR_FORMAT = "{desc}: {n_fmt}/{total_fmt} charts [{elapsed}]{postfix}"
@@ -20,8 +21,8 @@ BAR_FORMAT = "{desc}: {n_fmt}/{total_fmt} charts [{elapsed}]{postfix}"
 class Progress:
     """Progress of one unwrap on stderr; every method is a no-op when ``quiet``."""
 
-    def __init__(self, *, quiet=False, file=None):
-        self.bar = None
+    def __init__(self, *, quiet: bool = False, file: IO[str] | None = None):
+        self.bar: Any = None
         self._drawn = 0.0
         if not quiet:
             from tqdm import tqdm
@@ -31,7 +32,7 @@ class Progress:
             if self.bar.disable:                 # not a terminal: nothing to draw
                 self.bar = None
 
-    def stage(self, stage, done, total):
+    def stage(self, stage: str, done: int, total: int) -> None:
         """Pipeline stage callback: the chart count follows "solve"; other stages only rename the line."""
         if self.bar is None or stage == "iterate":      # iterations arrive through iteration()
             return
@@ -43,7 +44,7 @@ class Progress:
                 self.bar.set_postfix_str("", refresh=False)
         self.bar.refresh()
 
-    def iteration(self, info):
+    def iteration(self, info: dict[str, Any]) -> None:
         """Solver callback: the last LM iteration's energy and gradient norm (returns None: never stops)."""
         if self.bar is None:
             return None
@@ -55,6 +56,6 @@ class Progress:
             self.bar.refresh()
         return None
 
-    def close(self):
+    def close(self) -> None:
         if self.bar is not None:
             self.bar.close()

@@ -9,18 +9,14 @@ CSV and JSON are written atomically. Exit codes: :mod:`uvbake.cli.common`.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 
-import numpy as np
-
-from uvbake.analysis.sensitivity import parse_alphas, require_matplotlib, sweep
 from uvbake.cli.common import ArgumentParser
 from uvbake.cli.common import run as run_command
 from uvbake.errors import InputError
-from uvbake.flatten.options import BACKENDS, DEFAULTS
-from uvbake.flatten.starts import INITS
-from uvbake.io.load import load_mesh
+from uvbake.flatten.options import BACKENDS, DEFAULTS, INITS
 
 DESCRIPTION = "alpha sensitivity study: solve every alpha, report F*(alpha) and S(alpha) (Eq. 10)."
 
@@ -61,10 +57,13 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """``uvbake sweep``: solve every alpha, print the table, write the files asked for."""
+    from uvbake.analysis.sensitivity import parse_alphas, recommend_alpha, require_matplotlib, sweep
+    from uvbake.io.load import load_mesh
+
     alphas = parse_alphas(args.alphas)
     if args.max_iter < 0:
         raise InputError(f"--max-iter {args.max_iter} must be a non-negative integer")
-    if not (np.isfinite(args.tol) and args.tol > 0):
+    if not (math.isfinite(args.tol) and args.tol > 0):
         raise InputError(f"--tol {args.tol} must be a positive number")
     for opt in ("plot", "csv", "json"):
         path = getattr(args, opt)
@@ -95,8 +94,6 @@ def run(args: argparse.Namespace) -> int:
         for note in res.notes:
             print(f"note: {note}")
     if args.recommend:
-        from uvbake.analysis.sensitivity import recommend_alpha
-
         rec = recommend_alpha(res)
         print(f"recommended: {rec['reason']}")
     title = f"{args.mesh}: {res.n_charts} chart(s), init {args.init}" + (", warm start" if args.warm_start else "")

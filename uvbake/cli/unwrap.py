@@ -6,6 +6,9 @@
 Every output is checked before any work, written to a temporary file beside it, and all are renamed
 into place together at the end, or none (:class:`uvbake.io.atomic.OutputSet`); a run whose atlas fails
 validation writes only its report unless ``--keep-invalid``. Exit codes: :mod:`uvbake.cli.common`.
+
+The parser is built from light modules only (option defaults and choices); the pipeline, numpy and
+scipy are imported by the functions that run it, so ``uvbake --help`` answers at once.
 """
 
 from __future__ import annotations
@@ -18,17 +21,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from uvbake.analysis.crosscheck import cross_check_charts
-from uvbake.atlas.pipeline import check_texture, unwrap
-from uvbake.atlas.shapepack import mip_gutter_px
 from uvbake.cli.progress import Progress
 from uvbake.errors import InputError
-from uvbake.flatten.options import BACKENDS, DEFAULTS
-from uvbake.flatten.starts import INITS
+from uvbake.flatten.options import BACKENDS, DEFAULTS, INITS
 from uvbake.io.atomic import OutputSet
-from uvbake.io.export import png_bytes, textured_files, textured_paths
-from uvbake.pictures import atlas_image
-from uvbake.render import LIGHTING, preview, view_directions
+from uvbake.views import LIGHTING
 
 DESCRIPTION = (
     "Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle\n"
@@ -184,6 +181,8 @@ def _bake_output(args: argparse.Namespace) -> tuple[Path | None, str | None]:
 
 
 def _check_atlas_args(args: argparse.Namespace) -> None:
+    from uvbake.atlas.pipeline import check_texture
+    from uvbake.atlas.shapepack import mip_gutter_px
     if args.texture_size is None and args.texel_density is None:
         args.texture_size = 1024
     if args.mip_levels is not None:
@@ -216,6 +215,7 @@ def _outputs(args: argparse.Namespace) -> _Outputs:
 
 def _picture_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None]:
     """--preview and --atlas-image paths and options, checked before the solve."""
+    from uvbake.render import view_directions
     preview_path = output_path(args.mesh, args.preview, suffix="_preview", ext=".png") if args.preview else None
     atlas_path = output_path(args.mesh, args.atlas_image, suffix="_atlas", ext=".png") if args.atlas_image else None
     for flag, path in (("--preview", preview_path), ("--atlas-image", atlas_path)):
@@ -232,6 +232,7 @@ def _picture_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None
 
 def _targets(paths: _Outputs) -> list[tuple[str, Path]]:
     """Every file the run may write, with the flag that named it (for messages)."""
+    from uvbake.io.export import textured_paths
     targets = [("-o", p) for p in textured_paths(paths.mesh)]
     targets += [(flag, p) for flag, p in (("--json", paths.report), ("--bake", paths.bake),
                                           ("--preview", paths.preview), ("--atlas-image", paths.atlas))
@@ -239,7 +240,16 @@ def _targets(paths: _Outputs) -> list[tuple[str, Path]]:
     return targets
 
 
+def unwrap(source: Any, **options: Any) -> Any:
+    """:func:`uvbake.unwrap`, imported when a run starts (the parser stays light); the one call a run makes."""
+    from uvbake.atlas.pipeline import unwrap as pipeline_unwrap
+
+    return pipeline_unwrap(source, **options)
+
+
 def _solve(args: argparse.Namespace, mode: str | None) -> Any:
+    from uvbake.analysis.crosscheck import cross_check_charts
+
     bar = Progress(quiet=args.quiet)
     result = unwrap(args.mesh, alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol,
                     max_iter=args.max_iter, seed=args.seed, texture_size_px=args.texture_size,
@@ -259,6 +269,9 @@ def _solve(args: argparse.Namespace, mode: str | None) -> Any:
 def _stage_outputs(result: Any, paths: _Outputs, args: argparse.Namespace, outs: OutputSet) -> list[Path]:
     """Write the textured mesh, the baked texture and the preview to their temporary files."""
     from uvbake.atlas.pipeline import _blank
+    from uvbake.io.export import png_bytes, textured_files
+    from uvbake.pictures import atlas_image
+    from uvbake.render import preview
 
     image = result.image if result.image is not None else _blank(result.report["atlas"]["texture_size_px"])
     files = textured_files(paths.mesh, result.V, result.F, result.corner_uv, image,

@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from uvbake.errors import InputError
 
 
-def triangle_frames(V, F):
+def triangle_frames(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Isometric 2D corner coordinates of every triangle and the pseudo-inverse of their frame.
 
     Parameters
@@ -74,7 +74,7 @@ def triangle_frames(V, F):
     return R, Q, 0.5 * dblarea
 
 
-def jacobians(Q, F, uv):
+def jacobians(Q: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Per-triangle Jacobians A (m,2,2) of the map with per-vertex UVs ``uv (n,2)``."""
     U = uv[F]                                         # (m,3,2): corner k, coordinate c
     return np.einsum("mkc,mkj->mcj", U, Q)
@@ -150,13 +150,13 @@ class DistortionEnergy:
         self._gkeep = gi >= 0
         self._gslot = gi[self._gkeep]
 
-    def empty_matrix(self):
+    def empty_matrix(self) -> sp.csc_matrix:
         """A CSC matrix with the Hessian's pattern and zero values."""
         return sp.csc_matrix((np.zeros(self._nnz), self._indices, self._indptr),
                              shape=(self.n_free, self.n_free))
 
     @property
-    def diagonal_slots(self):
+    def diagonal_slots(self) -> np.ndarray:
         """Positions of the diagonal entries in the CSC data array."""
         return self._diag
 
@@ -170,18 +170,18 @@ class DistortionEnergy:
         A22 = np.einsum("mk,mk->m", self.b, v)
         return A11, A12, A21, A22
 
-    def per_triangle(self, uv):
+    def per_triangle(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """D_area and D_angle of every triangle, each (m,)."""
         A11, A12, A21, A22 = self._terms(uv)
         det = A11 * A22 - A12 * A21
         return (det - 1.0) ** 2, (A11 - A22) ** 2 + (A12 + A21) ** 2
 
-    def value(self, uv):
+    def value(self, uv: np.ndarray) -> float:
         """F at per-vertex UVs ``uv (n,2)``."""
         d_area, d_angle = self.per_triangle(uv)
         return float(np.dot(self.w, self.alpha * d_area + (1.0 - self.alpha) * d_angle))
 
-    def change(self, uv, duv):
+    def change(self, uv: np.ndarray, duv: np.ndarray) -> float:
         """F(uv + duv) - F(uv), computed term by term so it stays accurate when tiny.
 
         Subtracting two values of F near convergence loses everything below F's rounding error
@@ -200,7 +200,7 @@ class DistortionEnergy:
                + (1.0 - self.alpha) * (s1 * (2.0 * r1 + s1) + s2 * (2.0 * r2 + s2)))
         return float(np.dot(self.w, per))
 
-    def determinants(self, uv):
+    def determinants(self, uv: np.ndarray) -> np.ndarray:
         """det A of every triangle (m,); <= 0 means flipped or collapsed."""
         A11, A12, A21, A22 = self._terms(uv)
         return A11 * A22 - A12 * A21
@@ -224,15 +224,15 @@ class DistortionEnergy:
         H += ((1.0 - al) * w)[:, None, None] * self._H_angle
         return f, g, H
 
-    def value_and_gradient(self, uv):
+    def value_and_gradient(self, uv: np.ndarray) -> tuple[float, np.ndarray]:
         """F and its gradient over the free unknowns (interleaved u, v per vertex)."""
         f, g, _ = self._local(uv, hessian=False)
         return f, self._scatter_gradient(g)
 
-    def gradient(self, uv):
+    def gradient(self, uv: np.ndarray) -> np.ndarray:
         return self.value_and_gradient(uv)[1]
 
-    def evaluate(self, uv, out=None):
+    def evaluate(self, uv: np.ndarray, out: sp.csc_matrix | None = None) -> tuple[float, np.ndarray, sp.csc_matrix]:
         """F, gradient and Hessian (CSC, fixed pattern; ``out`` is refilled in place if given)."""
         f, g, H = self._local(uv, hessian=True)
         data = np.bincount(self._hslot, weights=H.ravel()[self._hkeep], minlength=self._nnz)
@@ -245,17 +245,17 @@ class DistortionEnergy:
         return np.bincount(self._gslot, weights=g.ravel()[self._gkeep], minlength=self.n_free)
 
     # -- conversions between per-vertex UVs and the free-unknown vector --------------------------
-    def to_vector(self, uv):
+    def to_vector(self, uv: np.ndarray) -> np.ndarray:
         return np.asarray(uv, dtype=np.float64).reshape(-1)[~self.fixed].copy()
 
-    def to_uv(self, x, uv_fixed):
+    def to_uv(self, x: np.ndarray, uv_fixed: np.ndarray) -> np.ndarray:
         """Per-vertex UVs from the free unknowns ``x``, taking fixed unknowns from ``uv_fixed``."""
         full = np.asarray(uv_fixed, dtype=np.float64).reshape(-1).copy()
         full[~self.fixed] = x
         return full.reshape(-1, 2)
 
 
-def optimal_scale(energy, uv):
+def optimal_scale(energy: DistortionEnergy, uv: np.ndarray) -> float:
     """The uniform scale s > 0 minimising F(s * uv), in closed form.
 
     det A scales with s^2 and D_angle with s^2, so with w = s^2,

@@ -2,34 +2,47 @@
 
 The CLI, :func:`uvbake.unwrap`, :func:`uvbake.parameterize` and :func:`uvbake.parameterize_charts`
 take their defaults from :data:`DEFAULTS` and build one ``SolveOptions``; the solvers trust it.
+Importing it imports neither numpy nor scipy, so the command line builds its parser (``uvbake --help``)
+from these defaults without loading the numerical stack.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import numbers
+import sys
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from uvbake.errors import InputError
-from uvbake.flatten.solvers.linalg import LINEAR_SOLVERS
-from uvbake.flatten.starts import INITS
 
+#: start maps (:func:`uvbake.flatten.starts.initial_map`)
+INITS = ("lscm", "tutte", "random", "isomap", "laplacian")
 BACKENDS = ("lm", "lbfgs")
+#: sparse factorisations (:func:`uvbake.flatten.solvers.linalg.make_solver`)
+LINEAR_SOLVERS = ("auto", "cholmod", "superlu")
 
 #: alpha of the continuation stage for invalid starts (see :func:`uvbake.flatten.solve.solve_chart`)
 CONTINUATION_ALPHA = 0.1
+
+
+def _numpy_scalars() -> tuple[tuple[type, ...], tuple[type, ...]]:
+    """numpy's (floating, integer) scalar types once numpy is loaded; none before, when no value can
+    be one (so this module need not import numpy)."""
+    np = sys.modules.get("numpy")
+    return ((np.floating,), (np.integer,)) if np is not None else ((), ())
 
 
 def _whole(x: Any) -> bool:
     """An integer, or a float with an integer value (as read from CSV or JSON); never a bool or a str."""
     if isinstance(x, bool):
         return False
-    if isinstance(x, (float, np.floating)):
-        return bool(np.isfinite(x) and float(x).is_integer())
-    return isinstance(x, (int, np.integer))
+    floating, integer = _numpy_scalars()
+    is_float = isinstance(x, (float, *floating))
+    if is_float:
+        return bool(math.isfinite(x) and float(x).is_integer())
+    return isinstance(x, (int, *integer))
 
 
 def _choices(values: tuple[str, ...]) -> str:
@@ -89,7 +102,7 @@ class SolveOptions:
         if self.backend not in BACKENDS:
             raise InputError(f"backend={self.backend!r} is not one of {_choices(BACKENDS)}")
         if not (isinstance(self.tol, numbers.Real) and not isinstance(self.tol, bool) and self.tol > 0
-                and np.isfinite(float(min(self.tol, 1e300)))):      # min: ints too large for a float
+                and math.isfinite(float(min(self.tol, 1e300)))):    # min: ints too large for a float
             raise InputError(f"tol={self.tol!r} must be a positive number (the scale-free gradient norm to reach)")
         if not _whole(self.max_iter) or self.max_iter < 0:
             raise InputError(f"max_iter={self.max_iter!r} must be a non-negative integer")

@@ -7,22 +7,23 @@ closed-form optimal factor of :func:`uvbake.flatten.energy.optimal_scale` before
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import scipy.sparse as sp
 
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy
+from uvbake.flatten.options import INITS
 from uvbake.mesh.arrays import signed_areas, triangle_areas
 from uvbake.mesh.topology import boundary_edges, topology
-
-INITS = ("lscm", "tutte", "random", "isomap", "laplacian")
 
 # Landmarks of the Isomap start (de Silva and Tenenbaum 2003). Time is linear in them; on beetle
 # 50 / 100 / 200 landmarks gave 19 / 17 / 18 flipped start triangles (of 38,656), so 64.
 ISOMAP_LANDMARKS = 64
 
 
-def farthest_boundary_pair(V, F):
+def farthest_boundary_pair(V: np.ndarray, F: np.ndarray) -> tuple[int, int]:
     """Two boundary vertices far apart: the farthest from an arbitrary one, then the farthest from it."""
     bnd = np.unique(boundary_edges(F, len(V)))
     p = bnd[np.argmax(np.linalg.norm(V[bnd] - V[bnd[0]], axis=1))]
@@ -30,7 +31,7 @@ def farthest_boundary_pair(V, F):
     return int(p), int(q)
 
 
-def lscm(V, F, *, pins=None):
+def lscm(V: np.ndarray, F: np.ndarray, *, pins: tuple[int, int] | None = None) -> np.ndarray:
     """Least squares conformal map (Levy et al. 2002) with two pinned boundary vertices.
 
     Minimises sum_t area_t * D_angle_t, which is LSCM's conformal energy, with the two pins placed
@@ -54,7 +55,7 @@ def lscm(V, F, *, pins=None):
     return E.to_uv(x, uv0)
 
 
-def tutte(V, F):
+def tutte(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Tutte's barycentric embedding: boundary on a circle by arc length, interior at neighbour means.
 
     Bijective for any chart with one boundary loop (Tutte 1963; Floater 1997). The circle's
@@ -88,7 +89,7 @@ def tutte(V, F):
     return uv
 
 
-def random_map(V, F, *, seed=0):
+def random_map(V: np.ndarray, F: np.ndarray, *, seed: int = 0) -> np.ndarray:
     """Uniform random UVs in a square of the chart's own area: an invalid, mostly flipped start."""
     V = np.asarray(V, dtype=np.float64)
     area = triangle_areas(V, np.asarray(F, dtype=np.int64))
@@ -96,7 +97,7 @@ def random_map(V, F, *, seed=0):
     return np.random.default_rng(seed).uniform(0.0, side, size=(len(V), 2))
 
 
-def edge_graph(V, F):
+def edge_graph(V: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
     """The mesh's own graph: a symmetric sparse (n,n) matrix of 3D edge lengths."""
     E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
     w = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
@@ -105,7 +106,7 @@ def edge_graph(V, F):
                                                    np.concatenate([E[:, 1], E[:, 0]]))), shape=(n, n)).tocsr()
 
 
-def isomap(V, F, *, landmarks=ISOMAP_LANDMARKS):
+def isomap(V: np.ndarray, F: np.ndarray, *, landmarks: int = ISOMAP_LANDMARKS) -> np.ndarray:
     """Landmark Isomap (de Silva and Tenenbaum, NIPS 2003) on the mesh's edge graph.
 
     Landmarks by geodesic farthest-point sampling (each Dijkstra run both picks the next landmark and
@@ -145,7 +146,7 @@ def isomap(V, F, *, landmarks=ISOMAP_LANDMARKS):
     return _orient(V, F, uv)
 
 
-def laplacian_eigenmap(V, F):
+def laplacian_eigenmap(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Laplacian eigenmap (Belkin and Niyogi 2003) with the mesh's cotangent Laplacian L and lumped
     mass matrix M: the two eigenvectors of L x = lambda M x after the constant one, by shift-invert
     Lanczos (scipy's eigsh, sigma just below 0 so L - sigma M is positive definite and uvbake's sparse
@@ -178,11 +179,11 @@ def laplacian_eigenmap(V, F):
     return _orient(V, F, uv)
 
 
-def cotangent_laplacian(V, F):
+def cotangent_laplacian(V: np.ndarray, F: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
     """The cotangent Laplacian (positive semi-definite, rows sum to 0) and the triangle areas."""
     n = len(V)
     area = triangle_areas(V, F)
-    cots = []
+    cots: Any = []                                  # per corner, then stacked (m,3)
     for k in range(3):                              # the angle at corner k faces edge (k+1, k+2)
         a = V[F[:, (k + 1) % 3]] - V[F[:, k]]
         b = V[F[:, (k + 2) % 3]] - V[F[:, k]]
@@ -203,7 +204,7 @@ def _orient(V, F, uv):
     return np.ascontiguousarray(uv)
 
 
-def initial_map(V, F, init, *, seed=0):
+def initial_map(V: np.ndarray, F: np.ndarray, init: str, *, seed: int = 0) -> np.ndarray:
     """The start map named by ``init`` (one of ``INITS``)."""
     if init == "lscm":
         return lscm(V, F)

@@ -6,12 +6,12 @@ import contextlib
 import errno
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Literal
 
 from uvbake.cancel import register_temp, unregister_temp
-from uvbake.errors import InputError
+from uvbake.errors import InputError, OutputError
 
 
 @contextlib.contextmanager
@@ -88,18 +88,18 @@ class OutputSet:
     The renames run with SIGINT/SIGTERM held back, so a signal cannot leave half of the set renamed.
     """
 
-    def __init__(self, targets, *, inputs=(), force=False):
+    def __init__(self, targets: Any, *, inputs: Iterable[str | os.PathLike[str]] = (), force: bool = False):
         self.flags = check_targets(targets, inputs=inputs, force=force)
-        self._temps = {}
+        self._temps: dict[Path, Path] = {}
 
-    def __enter__(self):
+    def __enter__(self) -> OutputSet:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         self.discard()
         return False
 
-    def temp_path(self, final) -> Path:
+    def temp_path(self, final: str | os.PathLike[str]) -> Path:
         """A fresh temporary path beside ``final`` (one of the targets) for a writer of its own."""
         final = Path(final)
         if final not in self.flags:
@@ -115,7 +115,7 @@ class OutputSet:
         register_temp(tmp)
         return self._temps[final]
 
-    def write_bytes(self, final, data: bytes) -> None:
+    def write_bytes(self, final: str | os.PathLike[str], data: bytes) -> None:
         tmp = self.temp_path(final)
         try:
             with open(tmp, "wb") as f:
@@ -125,7 +125,7 @@ class OutputSet:
         except OSError as exc:
             raise write_error(final, exc, self.flags[Path(final)]) from None
 
-    def commit(self) -> list:
+    def commit(self) -> list[Path]:
         """Rename every file written so far into place; return their final paths, in order."""
         from uvbake.cancel import check_cancelled, signals_deferred
 
@@ -152,10 +152,8 @@ class OutputSet:
         self._temps = {}
 
 
-def write_error(final, exc: OSError, flag=None):
+def write_error(final: str | os.PathLike[str], exc: OSError, flag: str | None = None) -> OutputError:
     """An :class:`~uvbake.errors.OutputError` naming the user's path (never the temporary file)."""
-    from uvbake.errors import OutputError
-
     what = f"{flag} {final}" if flag else str(final)
     if exc.errno == errno.ENOSPC:
         reason = "no space left on device; free some space or write to another disk"
@@ -170,7 +168,8 @@ def write_error(final, exc: OSError, flag=None):
     return err
 
 
-def check_targets(targets, *, inputs=(), force=False) -> dict:
+def check_targets(targets: Any, *, inputs: Iterable[str | os.PathLike[str]] = (),
+                  force: bool = False) -> dict[Path, str | None]:
     """Check output paths before any work; return ``{Path: flag}``.
 
     Parameters
@@ -188,27 +187,12 @@ def check_targets(targets, *, inputs=(), force=False) -> dict:
         A folder is missing or is a file, a target is a folder, the input, read-only, given twice,
         or the folder does not let us create files.
     """
-    if isinstance(targets, dict):
-        pairs = [(name, Path(p)) for name, p in targets.items()]
-    else:
-        pairs = [(t[0], Path(t[1])) if isinstance(t, tuple) else (None, Path(t)) for t in targets]
     out: dict[Path, str | None] = {}
     seen: dict[str, str] = {}
     ins = [Path(p) for p in inputs]
-    for flag, path in pairs:
+    for flag, path in _target_pairs(targets):
         what = f"{flag} {path}" if flag else str(path)
-        folder = path.parent
-        if path.name in ("", ".", ".."):
-            raise InputError(f"output {what} is a folder; give a file name")
-        probe = folder
-        while not probe.exists() and probe != probe.parent:
-            probe = probe.parent
-        if probe.exists() and not probe.is_dir():
-            raise InputError(f"output {what}: {probe} is a file, not a folder; choose another path")
-        if not folder.is_dir():
-            raise InputError(f"output {what}: folder {folder} does not exist; create it or choose another path")
-        if path.is_dir():
-            raise InputError(f"output {what} is a folder; give a file name")
+        _check_folder(path, what)
         for src in ins:
             if path.exists() and src.exists() and os.path.samefile(path, src):
                 raise InputError(f"output {what} is the input {src}; choose another output path")
@@ -216,25 +200,59 @@ def check_targets(targets, *, inputs=(), force=False) -> dict:
         if key in seen:
             raise InputError(f"outputs {seen[key]} and {what} are the same file; give them different names")
         seen[key] = what
-        if path.exists() and not force and not (path.stat().st_mode & 0o222):
-            raise InputError(f"output {what} is read-only; pass --force (force=True) to replace it, "
-                             "or choose another path")
         if path.exists():
-            try:  # an immutable or append-only file refuses even root; opening changes nothing
-                os.close(os.open(path, os.O_WRONLY | os.O_APPEND))
-            except PermissionError as exc:
-                if exc.errno == errno.EPERM or not force:
-                    raise InputError(f"output {what} cannot be replaced ({(exc.strerror or 'not permitted').lower()}: immutable, "
-                                     "append-only or not ours); choose another path") from None
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
-            os.close(fd)
-            os.unlink(tmp)
-        except OSError as exc:
-            raise InputError(f"output {what}: cannot create files in {folder} "
-                             f"({(exc.strerror or str(exc)).lower()}); choose another folder") from None
+            _check_replaceable(path, what, force)
+        _check_creatable(path, what)
         out[path] = flag
     return out
+
+
+def _target_pairs(targets: Any) -> list[tuple[Any, Path]]:
+    """``(name or None, Path)`` for every target of :func:`check_targets`."""
+    if isinstance(targets, dict):
+        return [(name, Path(p)) for name, p in targets.items()]
+    return [(t[0], Path(t[1])) if isinstance(t, tuple) else (None, Path(t)) for t in targets]
+
+
+def _check_folder(path: Path, what: str) -> None:
+    """The target names a file whose folder exists (no path component on the way is a file)."""
+    folder = path.parent
+    if path.name in ("", ".", ".."):
+        raise InputError(f"output {what} is a folder; give a file name")
+    probe = folder
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        raise InputError(f"output {what}: {probe} is a file, not a folder; choose another path")
+    if not folder.is_dir():
+        raise InputError(f"output {what}: folder {folder} does not exist; create it or choose another path")
+    if path.is_dir():
+        raise InputError(f"output {what} is a folder; give a file name")
+
+
+def _check_replaceable(path: Path, what: str, force: bool) -> None:
+    """An existing target may be replaced: writable (or ``force``), not immutable or append-only."""
+    if not force and not (path.stat().st_mode & 0o222):
+        raise InputError(f"output {what} is read-only; pass --force (force=True) to replace it, "
+                         "or choose another path")
+    try:  # an immutable or append-only file refuses even root; opening changes nothing
+        os.close(os.open(path, os.O_WRONLY | os.O_APPEND))
+    except PermissionError as exc:
+        if exc.errno == errno.EPERM or not force:
+            raise InputError(f"output {what} cannot be replaced ({(exc.strerror or 'not permitted').lower()}: immutable, "
+                             "append-only or not ours); choose another path") from None
+
+
+def _check_creatable(path: Path, what: str) -> None:
+    """The target's folder lets us create (and remove) a file."""
+    folder = path.parent
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as exc:
+        raise InputError(f"output {what}: cannot create files in {folder} "
+                         f"({(exc.strerror or str(exc)).lower()}); choose another folder") from None
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:

@@ -23,20 +23,21 @@ from __future__ import annotations
 import io as _io
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 from uvbake.io.atomic import OutputSet, atomic_write_bytes
+from uvbake.io.formats import TEXTURED_EXTENSIONS
 from uvbake.io.gltf import glb_bytes
 from uvbake.io.obj import save_obj
 from uvbake.io.uvread import read_uv
 
-#: Extensions save_textured writes.
-TEXTURED_EXTENSIONS = (".obj", ".glb")
 
-
-def save_textured(path, V, F, corner_uv, image, *, vertex_colors=None, name="uvbake") -> list:
+def save_textured(path: str | os.PathLike[str], V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, image: Any, *,
+                  vertex_colors: ArrayLike | None = None, name: str = "uvbake") -> list[Path]:
     """Write a textured mesh: ``.obj`` (with ``.mtl`` and ``.png`` beside it) or ``.glb``.
 
     Parameters
@@ -68,7 +69,8 @@ def save_textured(path, V, F, corner_uv, image, *, vertex_colors=None, name="uvb
     return list(files)
 
 
-def textured_files(path, V, F, corner_uv, image, *, vertex_colors=None, name="uvbake") -> dict:
+def textured_files(path: str | os.PathLike[str], V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, image: Any, *,
+                   vertex_colors: ArrayLike | None = None, name: str = "uvbake") -> dict[Path, bytes]:
     """The files of a textured mesh as ``{Path: bytes}`` (main file first), without writing them.
 
     Same parameters as :func:`save_textured`; a caller writing several outputs together passes
@@ -85,7 +87,7 @@ def textured_files(path, V, F, corner_uv, image, *, vertex_colors=None, name="uv
     return {path: glb_bytes(V, F, corner_uv, _png_bytes(image), vertex_colors=vertex_colors, name=name)}
 
 
-def textured_paths(path) -> list:
+def textured_paths(path: str | os.PathLike[str]) -> list[Path]:
     """The files :func:`save_textured` writes for ``path`` (OBJ: .obj, .mtl, .png; GLB: .glb)."""
     path = Path(path)
     if path.suffix.lower() == ".obj":
@@ -93,7 +95,7 @@ def textured_paths(path) -> list:
     return [path]
 
 
-def save_png(path, image) -> Path:
+def save_png(path: str | os.PathLike[str], image: Any) -> Path:
     """Write a texture as PNG (lossless), atomically.
 
     Parameters
@@ -141,7 +143,8 @@ def load_textured_uv(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarr
 # checks and helpers
 
 
-def _check(path, V, F, corner_uv, image, vertex_colors):
+def _check(path: Path, V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, image: Any, vertex_colors: ArrayLike | None
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F)
     corner_uv = np.asarray(corner_uv, dtype=np.float64)
@@ -158,20 +161,20 @@ def _check(path, V, F, corner_uv, image, vertex_colors):
     if not np.all(np.isfinite(V)):
         raise InputError(f"{path}: V holds NaN or infinite coordinates; repair the mesh first")
     image = _check_image(path, image)
+    colors: np.ndarray | None = None
     if vertex_colors is not None:
-        vertex_colors = np.asarray(vertex_colors)
-        if vertex_colors.dtype == np.uint8:
-            vertex_colors = vertex_colors / 255.0
-        vertex_colors = vertex_colors.astype(np.float64)
-        if vertex_colors.ndim != 2 or vertex_colors.shape[0] != len(V) \
-                or vertex_colors.shape[1] not in (3, 4):
+        colors = np.asarray(vertex_colors)
+        if colors.dtype == np.uint8:
+            colors = colors / 255.0
+        colors = colors.astype(np.float64)
+        if colors.ndim != 2 or colors.shape[0] != len(V) or colors.shape[1] not in (3, 4):
             raise InputError(f"{path}: vertex_colors must be (n,3)={V.shape}, got "
-                             f"{vertex_colors.shape}; pass one RGB colour per vertex")
-        vertex_colors = np.clip(vertex_colors[:, :3], 0.0, 1.0)
-    return V, F, corner_uv, image, vertex_colors
+                             f"{colors.shape}; pass one RGB colour per vertex")
+        colors = np.clip(colors[:, :3], 0.0, 1.0)
+    return V, F, corner_uv, image, colors
 
 
-def _check_image(path, image) -> np.ndarray:
+def _check_image(path: str | os.PathLike[str], image: Any) -> np.ndarray:
     if hasattr(image, "convert") and hasattr(image, "mode"):  # a PIL image
         image = np.asarray(image.convert("RGBA" if image.mode in ("RGBA", "LA", "PA") else "RGB"))
     image = np.asarray(image)
@@ -184,7 +187,7 @@ def _check_image(path, image) -> np.ndarray:
     return np.ascontiguousarray(image)
 
 
-def png_bytes(image, name="image") -> bytes:
+def png_bytes(image: Any, name: str | os.PathLike[str] = "image") -> bytes:
     """A texture (see :func:`save_png`) encoded as PNG, for writers that stage their own files."""
     return _png_bytes(_check_image(name, image))
 

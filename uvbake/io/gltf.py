@@ -1,18 +1,17 @@
-"""Binary glTF (GLB) writing and reading of textured meshes."""
+"""Binary glTF (GLB) writing of textured meshes (reading back: :func:`uvbake.io.uvread.read_uv`)."""
 
 from __future__ import annotations
 
 import json
 import struct
-from pathlib import Path
 
 import numpy as np
 
-from uvbake.errors import InputError
 from uvbake.io.corners import split_corners
 
 
-def glb_bytes(V, F, corner_uv, png: bytes, *, vertex_colors=None, name="uvbake") -> bytes:
+def glb_bytes(V: np.ndarray, F: np.ndarray, corner_uv: np.ndarray, png: bytes, *,
+              vertex_colors: np.ndarray | None = None, name: str = "uvbake") -> bytes:
     """The GLB file of a textured mesh (see :func:`uvbake.io.export.save_textured`), as bytes.
 
     ``png`` is the texture, already encoded (the caller encodes it, so a failing encoder fails early).
@@ -27,7 +26,7 @@ def glb_bytes(V, F, corner_uv, png: bytes, *, vertex_colors=None, name="uvbake")
     blob = bytearray()
     views, accessors = [], []
 
-    def add_view(data: bytes, target=None):
+    def add_view(data: bytes, target: int | None = None) -> int:
         while len(blob) % 4:
             blob.append(0)
         view = {"buffer": 0, "byteOffset": len(blob), "byteLength": len(data)}
@@ -80,51 +79,6 @@ def glb_bytes(V, F, corner_uv, png: bytes, *, vertex_colors=None, name="uvbake")
                      struct.pack("<I4s", len(blob), b"BIN\x00"), bytes(blob)])
 
 
-_COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
-              5126: np.float32}
-
-
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-
-
-def _load_glb(path):
-    """V, F, corner_uv (v up) of the single primitive of a GLB written by uvbake."""
-    data = Path(path).read_bytes()
-    try:
-        magic, version, total = struct.unpack_from("<4sII", data, 0)
-        if magic != b"glTF" or version != 2:
-            raise ValueError("not a glTF 2.0 binary")
-        js_len, js_type = struct.unpack_from("<I4s", data, 12)
-        gltf = json.loads(data[20:20 + js_len])
-        bin_start = 20 + js_len + 8
-        bin_len, _ = struct.unpack_from("<I4s", data, 20 + js_len)
-        blob = data[bin_start:bin_start + bin_len]
-
-        def accessor(i):
-            acc = gltf["accessors"][i]
-            view = gltf["bufferViews"][acc["bufferView"]]
-            dtype = np.dtype(_COMPONENT[acc["componentType"]])
-            width = _WIDTH[acc["type"]]
-            start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
-            stride = view.get("byteStride", dtype.itemsize * width)
-            rows = [np.frombuffer(blob, dtype, width, start + r * stride) for r in range(acc["count"])] \
-                if stride != dtype.itemsize * width else \
-                [np.frombuffer(blob, dtype, acc["count"] * width, start)]
-            return np.concatenate(rows).reshape(acc["count"], width)
-
-        meshes = gltf.get("meshes", [])
-        if len(meshes) != 1 or len(meshes[0]["primitives"]) != 1:
-            raise ValueError("expected one mesh with one primitive")
-        prim = meshes[0]["primitives"][0]
-        V = accessor(prim["attributes"]["POSITION"]).astype(np.float64)
-        F = accessor(prim["indices"]).reshape(-1, 3).astype(np.int64)
-        uv = accessor(prim["attributes"]["TEXCOORD_0"]).astype(np.float64)
-    except (ValueError, KeyError, IndexError, struct.error) as exc:
-        raise InputError(f"{path}: cannot read as a uvbake GLB ({exc}); export it again") from None
-    uv[:, 1] = 1.0 - uv[:, 1]
-    return V, F, uv[F]
-
-
 _GL_FLOAT, _GL_UNSIGNED_INT = 5126, 5125
 
 
@@ -134,7 +88,7 @@ _GL_ARRAY_BUFFER, _GL_ELEMENT_ARRAY_BUFFER = 34962, 34963
 _GL_LINEAR, _GL_LINEAR_MIPMAP_LINEAR, _GL_CLAMP_TO_EDGE = 9729, 9987, 33071
 
 
-def _vertex_normals(V, F):
+def _vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals; (0,0,1) where undefined."""
     P = V[F]
     fn = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])

@@ -35,15 +35,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
+from uvbake.io.formats import MESH_EXTENSIONS
 from uvbake.io.meshdata import MeshData, _check_labels, _make
 from uvbake.io.obj import load_obj_uv
 from uvbake.io.ply import BOM, _ply_face_property_names, check_ply_complete, read_ply_elements
 
 #: Face property names read as per-face segment labels, first found wins.
 LABEL_NAMES = ("segment", "label", "segment_id", "chart", "chart_id", "region")
-
-#: File extensions load_mesh accepts (OBJ is parsed here, the rest by trimesh).
-MESH_EXTENSIONS = (".ply", ".obj", ".off", ".glb", ".gltf", ".stl")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -96,18 +94,7 @@ def load_mesh(source: Any, *, face_labels: ArrayLike | None = None) -> MeshData:
 
 def _load_path(path: Path) -> MeshData:
     name = str(path)
-    if not path.exists():
-        raise InputError(f"{name}: file not found; check the path")
-    if path.is_dir():
-        raise InputError(f"{name}: is a directory, not a mesh file; pass the path of a mesh file inside it")
-    ext = path.suffix.lower()
-    if ext not in MESH_EXTENSIONS:
-        raise InputError(
-            f"{name}: unknown mesh format {ext or '(no extension)'!r}; "
-            f"use one of {', '.join(MESH_EXTENSIONS)}"
-        )
-    if path.stat().st_size == 0:
-        raise InputError(f"{name}: file is empty (0 bytes); export the mesh again")
+    ext = _check_path(path, name)
     if ext == ".obj":
         return load_obj_uv(path)[0]
     # own readers for the common files: importing trimesh costs ~0.6 s of CPU (it pulls networkx)
@@ -119,36 +106,9 @@ def _load_path(path: Path) -> MeshData:
         check_ply_complete(path, name)
     elif ext == ".off":
         _check_off_complete(path, name)
-
-    import trimesh
-
-    from uvbake.cancel import check_cancelled
-
-    check_cancelled()             # trimesh's import swallows KeyboardInterrupt in optional imports
-    kwargs: dict[str, Any] = {"fix_texture": False} if ext == ".ply" else {}
-    try:
-        with open(path, "rb") as fh:
-            bom = fh.read(len(BOM)) == BOM
-        if bom:   # a UTF-8 byte-order mark (Windows tools) is not part of the format
-            import io
-
-            loaded = trimesh.load(io.BytesIO(path.read_bytes()[len(BOM):]), file_type=ext[1:],
-                                  process=False, **kwargs)
-        else:
-            loaded = trimesh.load(name, process=False, **kwargs)
-    except Exception as exc:  # trimesh raises anything from KeyError to struct.error
-        if ext == ".ply":  # e.g. binary PLY with polygons of mixed sizes
-            try:
-                return _mesh_from_ply_elements(read_ply_elements(path), name)
-            except InputError:
-                raise
-            except (ValueError, KeyError, IndexError, TypeError):
-                pass
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise InputError(
-            f"{name}: cannot read as {ext[1:].upper()} ({reason[:120]}); "
-            f"check that it is a valid {ext[1:].upper()} file or export it again"
-        ) from None
+    loaded = _trimesh_load(path, name, ext)
+    if isinstance(loaded, MeshData):
+        return loaded
     if hasattr(loaded, "geometry") and hasattr(loaded, "dump"):
         mesh = _from_trimesh_scene(loaded, name)
     elif getattr(loaded, "faces", None) is None or not hasattr(loaded, "vertices"):
@@ -162,6 +122,55 @@ def _load_path(path: Path) -> MeshData:
     if ext == ".stl":
         mesh = _merge_exact_duplicates(mesh)
     return mesh
+
+
+def _check_path(path: Path, name: str) -> str:
+    """The file exists, is not empty and has a known extension; return the extension (lower case)."""
+    if not path.exists():
+        raise InputError(f"{name}: file not found; check the path")
+    if path.is_dir():
+        raise InputError(f"{name}: is a directory, not a mesh file; pass the path of a mesh file inside it")
+    ext = path.suffix.lower()
+    if ext not in MESH_EXTENSIONS:
+        raise InputError(
+            f"{name}: unknown mesh format {ext or '(no extension)'!r}; "
+            f"use one of {', '.join(MESH_EXTENSIONS)}"
+        )
+    if path.stat().st_size == 0:
+        raise InputError(f"{name}: file is empty (0 bytes); export the mesh again")
+    return ext
+
+
+def _trimesh_load(path: Path, name: str, ext: str) -> Any:
+    """What ``trimesh.load`` reads from the file (or, for a PLY it cannot read, our own reader's MeshData)."""
+    import trimesh
+
+    from uvbake.cancel import check_cancelled
+
+    check_cancelled()             # trimesh's import swallows KeyboardInterrupt in optional imports
+    kwargs: dict[str, Any] = {"fix_texture": False} if ext == ".ply" else {}
+    try:
+        with open(path, "rb") as fh:
+            bom = fh.read(len(BOM)) == BOM
+        if bom:   # a UTF-8 byte-order mark (Windows tools) is not part of the format
+            import io
+
+            return trimesh.load(io.BytesIO(path.read_bytes()[len(BOM):]), file_type=ext[1:],
+                                process=False, **kwargs)
+        return trimesh.load(name, process=False, **kwargs)
+    except Exception as exc:  # trimesh raises anything from KeyError to struct.error
+        if ext == ".ply":  # e.g. binary PLY with polygons of mixed sizes
+            try:
+                return _mesh_from_ply_elements(read_ply_elements(path), name)
+            except InputError:
+                raise
+            except (ValueError, KeyError, IndexError, TypeError):
+                pass
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(
+            f"{name}: cannot read as {ext[1:].upper()} ({reason[:120]}); "
+            f"check that it is a valid {ext[1:].upper()} file or export it again"
+        ) from None
 
 
 def _check_off_complete(path: Path, name: str) -> None:
@@ -189,7 +198,7 @@ def _from_arrays(source: tuple) -> MeshData:
     return _make(source[0], source[1], None, None, "arrays")
 
 
-def _from_trimesh(mesh, name: str) -> MeshData:
+def _from_trimesh(mesh: Any, name: str) -> MeshData:
     labels = None
     attrs = getattr(mesh, "face_attributes", None) or {}
     found = _first_label_name(attrs)
@@ -211,7 +220,7 @@ def _from_trimesh(mesh, name: str) -> MeshData:
     return _make(mesh.vertices, F, _trimesh_colors(mesh), labels, name)
 
 
-def _from_trimesh_scene(scene, name: str) -> MeshData:
+def _from_trimesh_scene(scene: Any, name: str) -> MeshData:
     import trimesh
 
     meshes = [g for g in scene.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)]
@@ -228,7 +237,7 @@ def _from_trimesh_scene(scene, name: str) -> MeshData:
     return MeshData(V=V, F=F, vertex_colors=colors, face_labels=None, source=name)
 
 
-def _from_open3d_legacy(mesh) -> MeshData:
+def _from_open3d_legacy(mesh: Any) -> MeshData:
     colors = None
     if mesh.has_vertex_colors():
         colors = np.asarray(mesh.vertex_colors)
@@ -236,7 +245,7 @@ def _from_open3d_legacy(mesh) -> MeshData:
                  "open3d.geometry.TriangleMesh")
 
 
-def _from_open3d_tensor(mesh) -> MeshData:
+def _from_open3d_tensor(mesh: Any) -> MeshData:
     name = "open3d.t.geometry.TriangleMesh"
     if "positions" not in mesh.vertex or "indices" not in mesh.triangle:
         raise InputError(f"{name}: has no vertex positions or triangle indices; give a triangle mesh")

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 
@@ -42,7 +43,7 @@ class MeshData:
         return len(self.F)
 
 
-def _make(V, F, colors, labels, name: str) -> MeshData:
+def _make(V: ArrayLike, F: ArrayLike, colors: ArrayLike | None, labels: ArrayLike | None, name: str) -> MeshData:
     """Check shapes and index ranges, convert dtypes, and build a MeshData."""
     V = np.asarray(V)
     F = np.asarray(F)
@@ -86,7 +87,7 @@ def _as_int(a: np.ndarray, name: str, what: str) -> np.ndarray:
                      "pass integer values")
 
 
-def _check_labels(labels, m: int, name: str, what: str) -> np.ndarray:
+def _check_labels(labels: ArrayLike, m: int, name: str, what: str) -> np.ndarray:
     labels = np.asarray(labels)
     if labels.ndim == 2 and labels.shape[1] == 1:
         labels = labels[:, 0]

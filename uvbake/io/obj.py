@@ -158,7 +158,8 @@ def save_obj(path: str | os.PathLike[str], V: ArrayLike, F: ArrayLike, *, uv: np
     return None
 
 
-def _obj_text(V, F, uv, uv_faces, vertex_colors, mtllib, material) -> str:
+def _obj_text(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, uv_faces: np.ndarray | None,
+              vertex_colors: np.ndarray | None, mtllib: str | None, material: str | None) -> str:
     f = io.StringIO()
     f.write("# written by uvbake\n")
     if mtllib:
@@ -169,7 +170,7 @@ def _obj_text(V, F, uv, uv_faces, vertex_colors, mtllib, material) -> str:
         _write_rows(f, "vt", uv, "%.17g")
     if material:
         f.write(f"usemtl {material}\n")
-    if uv is None:
+    if uv is None or uv_faces is None:           # _check_uv gives both or neither
         _write_rows(f, "f", F + 1, "%d")
     else:
         corners = np.stack([F + 1, uv_faces + 1], axis=-1).reshape(len(F), 6)
@@ -198,7 +199,7 @@ def _check_uv(name, V, F, uv, uv_faces):
     return uv, uv_faces
 
 
-def _write_rows(f, tag: str, rows: np.ndarray, fmt: str) -> None:
+def _write_rows(f: io.StringIO, tag: str, rows: np.ndarray, fmt: str) -> None:
     if len(rows) == 0:
         return
     per_row = rows.shape[1] // fmt.count("%")

@@ -67,7 +67,7 @@ def _ply_header(path):
     return fmt, elements, body
 
 
-def check_ply_complete(path, name) -> None:
+def check_ply_complete(path: str | os.PathLike[str], name: str) -> None:
     """Raise InputError if the file holds fewer elements than its header declares (truncated)."""
     try:
         fmt, elements, body = _ply_header(path)
@@ -90,7 +90,7 @@ def check_ply_complete(path, name) -> None:
             from None
 
 
-def _ply_ascii(body: bytes, elements) -> dict:
+def _ply_ascii(body: bytes, elements: list[Any]) -> dict:
     tokens = body.split()
     pos, out = 0, {}
     for name, count, props in elements:
@@ -108,7 +108,7 @@ def _ply_ascii(body: bytes, elements) -> dict:
     return out
 
 
-def _ply_binary(body: bytes, elements, endian: str) -> dict:
+def _ply_binary(body: bytes, elements: list[Any], endian: str) -> dict:
     pos, out = 0, {}
     for name, count, props in elements:
         fixed: list[Any] = []  # try one record layout, using the first row's list lengths
@@ -154,7 +154,7 @@ def _ply_column(values, prop):
     return values
 
 
-def _ply_face_property_names(path) -> list:
+def _ply_face_property_names(path: str | os.PathLike[str]) -> list[str]:
     names, in_face = [], False
     with open(path, "rb") as f:
         for raw_line in f:

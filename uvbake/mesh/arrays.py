@@ -93,7 +93,7 @@ def rigid_align(P: np.ndarray, Q: np.ndarray, X: np.ndarray | None = None
     return Rm.T, cq - cp @ Rm, (X - cp) @ Rm + cq
 
 
-def unit_exponent(V) -> int:
+def unit_exponent(V: ArrayLike) -> int:
     """``k`` with ``max|V| * 2**-k`` in [0.5, 1), 0 for an empty, zero or non-finite V.
 
     Scaling by a power of two (``np.ldexp(V, -k)``) is exact, so meshes at any finite scale

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from uvbake.errors import ChartError, InputError
@@ -72,7 +73,7 @@ def _edge_lengths(V, ea, eb):
     return np.linalg.norm(V[ea] - V[eb], axis=1)
 
 
-def seam_length(V, F, labels):
+def seam_length(V: ArrayLike, F: ArrayLike, labels: ArrayLike) -> float:
     """Total 3D length of the mesh edges whose two triangles carry different labels.
 
     Parameters
@@ -180,7 +181,7 @@ def _harmonic(m, fi, fj, w, seeds):
 
 
 # ------------------------------------------------------------------------------------------- sweep
-def prefix_cuts(field, fi, fj, w):
+def prefix_cuts(field: np.ndarray, fi: np.ndarray, fj: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Triangles in ``field``'s order, and the seam length cut[k] (k = 0..m) of every prefix of k of
     them: the total weight ``w`` of the dual edges (fi, fj) with exactly one end in the prefix."""
     m = len(field)
@@ -262,7 +263,7 @@ def _make_valid(F, n, labels, fi, fj, hi, hj, max_rounds=100):
     return labels, False
 
 
-def _prepare(V, F, where):
+def _prepare(V: ArrayLike, F: ArrayLike, where: str) -> tuple[np.ndarray, ...]:
     V, F = check_arrays(V, F, where=where)
     m = len(F)
     if m < 2:
@@ -294,7 +295,8 @@ def _mass(V, F, weights, where):
 
 
 # ------------------------------------------------------------------------------------------ public
-def bisect(V, F, *, weights=None, seed_faces=None, min_fraction=MIN_FRACTION):
+def bisect(V: ArrayLike, F: ArrayLike, *, weights: ArrayLike | None = None, seed_faces: ArrayLike | None = None,
+           min_fraction: float = MIN_FRACTION) -> np.ndarray:
     """Split one edge-connected chart into two edge-connected parts along a short cut.
 
     Parameters
@@ -328,7 +330,7 @@ def bisect(V, F, *, weights=None, seed_faces=None, min_fraction=MIN_FRACTION):
             raise InputError(f"bisect: seed_faces must be triangle indices in 0..{m - 1} (got {_list(seeds)})")
         if len(seeds) == m:
             field = _fiedler(m, fi, fj, w, mass)
-            seeds = None
+            seeds = None  # type: ignore[assignment]  # (no side to keep: every triangle is a seed)
         else:
             field = _harmonic(m, fi, fj, w, seeds)
     # a seeded cut keeps the seeds' side (the sweep's prefix) at most half of the chart
@@ -354,7 +356,7 @@ def bisect(V, F, *, weights=None, seed_faces=None, min_fraction=MIN_FRACTION):
     return labels
 
 
-def split_where(V, F, bad_faces, *, min_fraction=MIN_FRACTION):
+def split_where(V: ArrayLike, F: ArrayLike, bad_faces: ArrayLike, *, min_fraction: float = MIN_FRACTION) -> np.ndarray:
     """Cut a chart so that its bad triangles (flipped, overlapping) go to one side along a short cut.
 
     Parameters
@@ -391,7 +393,7 @@ def split_where(V, F, bad_faces, *, min_fraction=MIN_FRACTION):
         return bisect(V, F, min_fraction=min_fraction)
 
 
-def cut_to_disks(V, F, *, max_charts=64):
+def cut_to_disks(V: ArrayLike, F: ArrayLike, *, max_charts: int = 64) -> np.ndarray:
     """Label the triangles so that every label is one disk with holes (genus 0, at least one boundary).
 
     Closed pieces and pieces with handles are bisected (:func:`bisect`) until every piece is a disk

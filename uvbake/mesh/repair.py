@@ -35,9 +35,11 @@ mesh comes back with equal arrays.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from uvbake.errors import InputError
@@ -75,7 +77,7 @@ class RepairResult:
     def changed(self) -> bool:
         return bool(self.actions)
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays but the counts)."""
         return {
             "n_vertices": int(len(self.V)),
@@ -275,7 +277,7 @@ def _orient_parity(F, n):
 
 
 # -------------------------------------------------------------------------------------------- pass
-def soup_like(F, n):
+def soup_like(F: np.ndarray, n: int) -> bool:
     """True when most edges are unshared: a triangle soup (every triangle with its own corners), which
     welding repairs. A mesh the user cut on purpose has few boundary edges and keeps its cuts."""
     if len(F) == 0:
@@ -285,148 +287,170 @@ def soup_like(F, n):
     return bool(np.count_nonzero(cnt == 1) > 0.5 * len(cnt))
 
 
-def _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol, weld=True):
+def _one_pass(V: np.ndarray, F: np.ndarray, fidx: np.ndarray, vidx: np.ndarray, min_component_faces: int | None,
+              weld_tol: float, weld: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list, list]:
     """One pass of every step; fidx/vidx give the input ids (examples are reported in them).
 
     Returns V, F, face_index, vertex_index (into the original input), actions, warnings.
     """
-    n = len(V)
-    actions, warns = [], []
+    p = RepairResult(V, F, fidx, vidx)                # the mesh as the steps change it
+    _drop_nonfinite(p)
+    if len(p.F) and weld:
+        _weld_step(p, weld_tol)
+    for step in (_drop_degenerate, _drop_duplicates, _split_nonmanifold, _orient):
+        if len(p.F):
+            step(p)
+    if len(p.F):
+        _drop_specks(p, min_component_faces)
+    _drop_unreferenced(p)
+    return p.V, p.F, p.face_index, p.vertex_index, p.actions, p.warnings
 
-    # 1. non-finite coordinates
-    bad_v = ~np.isfinite(V).all(axis=1)
+
+def _drop_nonfinite(p: RepairResult) -> None:
+    """Step 1: triangles touching a vertex with NaN or infinite coordinates."""
+    bad_v = ~np.isfinite(p.V).all(axis=1)
     if bad_v.any():
-        drop = bad_v[F].any(axis=1)
+        drop = bad_v[p.F].any(axis=1)
         if drop.any():
-            actions.append({"kind": "drop_nonfinite_faces", "count": int(drop.sum()),
-                            "examples": _ex(fidx[drop]), "vertices": _ex(np.flatnonzero(bad_v))})
-            warns.append(f"dropped {int(drop.sum())} triangles with NaN/infinite vertex coordinates "
-                         f"(triangles {_list(fidx[drop])})")
-            F, fidx = F[~drop], fidx[~drop]
+            p.actions.append({"kind": "drop_nonfinite_faces", "count": int(drop.sum()),
+                              "examples": _ex(p.face_index[drop]), "vertices": _ex(np.flatnonzero(bad_v))})
+            p.warnings.append(f"dropped {int(drop.sum())} triangles with NaN/infinite vertex coordinates "
+                           f"(triangles {_list(p.face_index[drop])})")
+            p.F, p.face_index = p.F[~drop], p.face_index[~drop]
 
-    # 2. weld coincident boundary vertices that zip boundary edges (a soup, or when asked: a cut the
-    #    user made, with duplicated positions along it, is their seam)
-    if len(F) and weld:
-        rep = _weld(V, F, weld_tol)
-        moved = np.flatnonzero(rep != np.arange(n))
-        if len(moved):
-            actions.append({"kind": "weld_vertices", "count": int(len(moved)),
-                            "examples": [[int(vidx[a]), int(vidx[rep[a]])] for a in moved[:5]]})
-            F = rep[F]
 
-    # 3. degenerate triangles
-    if len(F):
-        X = V[F]
-        e = np.linalg.norm(X[:, [1, 2, 0]] - X, axis=2)
-        dbl = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
-        scale = max(float(np.mean(e)), np.finfo(float).tiny)
-        rpt = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
-        deg = rpt | (dbl <= 1e-12 * np.maximum(e.max(axis=1), scale) ** 2)
-        if deg.any():
-            actions.append({"kind": "drop_degenerate_faces", "count": int(deg.sum()),
-                            "examples": _ex(fidx[deg]), "repeated_vertex": int(rpt.sum())})
-            F, fidx = F[~deg], fidx[~deg]
+def _weld_step(p: RepairResult, weld_tol: float) -> None:
+    """Step 2: weld coincident boundary vertices that zip boundary edges (a soup, or when asked: a cut
+    the user made, with duplicated positions along it, is their seam)."""
+    n = len(p.V)
+    rep = _weld(p.V, p.F, weld_tol)
+    moved = np.flatnonzero(rep != np.arange(n))
+    if len(moved):
+        p.actions.append({"kind": "weld_vertices", "count": int(len(moved)),
+                          "examples": [[int(p.vertex_index[a]), int(p.vertex_index[rep[a]])] for a in moved[:5]]})
+        p.F = rep[p.F]
 
-    # 4. duplicated triangles
-    if len(F):
-        _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
-        if len(first) < len(F):
-            keep = np.zeros(len(F), bool)
-            keep[first] = True
-            actions.append({"kind": "drop_duplicate_faces", "count": int((~keep).sum()),
-                            "examples": _ex(fidx[~keep])})
-            F, fidx = F[keep], fidx[keep]
 
-    # 5-6. non-manifold edges and vertices: one vertex per fan
-    if len(F):
-        fan, nm_edges = _nonmanifold(V, F, n)
+def _drop_degenerate(p: RepairResult) -> None:
+    """Step 3: degenerate triangles."""
+    F = p.F
+    X = p.V[F]
+    e = np.linalg.norm(X[:, [1, 2, 0]] - X, axis=2)
+    dbl = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    scale = max(float(np.mean(e)), np.finfo(float).tiny)
+    rpt = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    deg = rpt | (dbl <= 1e-12 * np.maximum(e.max(axis=1), scale) ** 2)
+    if deg.any():
+        p.actions.append({"kind": "drop_degenerate_faces", "count": int(deg.sum()),
+                          "examples": _ex(p.face_index[deg]), "repeated_vertex": int(rpt.sum())})
+        p.F, p.face_index = F[~deg], p.face_index[~deg]
+
+
+def _drop_duplicates(p: RepairResult) -> None:
+    """Step 4: duplicated triangles (the first is kept)."""
+    _, first = np.unique(np.sort(p.F, axis=1), axis=0, return_index=True)
+    if len(first) < len(p.F):
+        keep = np.zeros(len(p.F), bool)
+        keep[first] = True
+        p.actions.append({"kind": "drop_duplicate_faces", "count": int((~keep).sum()),
+                          "examples": _ex(p.face_index[~keep])})
+        p.F, p.face_index = p.F[keep], p.face_index[keep]
+
+
+def _split_nonmanifold(p: RepairResult) -> None:
+    """Steps 5-6: non-manifold edges and vertices: one vertex per fan."""
+    F, n, vidx = p.F, len(p.V), p.vertex_index
+    fan, nm_edges = _nonmanifold(p.V, F, n)
+    G, vmap, split_v = _vertices_per_fan(F, n, fan)
+    if len(vmap) <= n:
+        return
+    _, key = _edge_keys(G, len(vmap))
+    _, cnt = np.unique(key, return_counts=True)
+    if (cnt > 2).any():
+        # the best-pair rule left some edges shared: detach every triangle at those edges
+        fan = _nonmanifold_full_detach(F, n)
         G, vmap, split_v = _vertices_per_fan(F, n, fan)
-        if len(vmap) > n:
-            _, key = _edge_keys(G, len(vmap))
-            _, cnt = np.unique(key, return_counts=True)
-            if (cnt > 2).any():
-                # the best-pair rule left some edges shared: detach every triangle at those edges
-                fan = _nonmanifold_full_detach(F, n)
-                G, vmap, split_v = _vertices_per_fan(F, n, fan)
-                _, key = _edge_keys(G, len(vmap))
-                uk, cnt = np.unique(key, return_counts=True)
-                if (cnt > 2).any():
-                    nn = len(vmap)
-                    bad = uk[cnt > 2]
-                    pairs = ", ".join(f"({vidx[vmap[k // nn]]},{vidx[vmap[k % nn]]})" for k in bad[:5])
-                    raise InputError(f"repair: {len(bad)} non-manifold edges (input vertices {pairs}) cannot be "
-                                     "separated by duplicating vertices; remove the triangles around them")
-            if len(nm_edges):
-                actions.append({"kind": "split_nonmanifold_edges", "count": int(len(nm_edges)),
-                                "examples": [[int(a), int(b)] for a, b in vidx[nm_edges[:5]]]})
-                warns.append(f"split {len(nm_edges)} non-manifold edges (edges "
-                             f"{', '.join(f'({a},{b})' for a, b in vidx[nm_edges[:5]])}) by detaching triangles")
-            actions.append({"kind": "split_nonmanifold_vertices", "count": int(len(vmap) - n),
-                            "examples": _ex(vidx[split_v])})
-            F, V, vidx = G, V[vmap], vidx[vmap]
-            n = len(V)
+        _, key = _edge_keys(G, len(vmap))
+        uk, cnt = np.unique(key, return_counts=True)
+        if (cnt > 2).any():
+            nn = len(vmap)
+            bad = uk[cnt > 2]
+            pairs = ", ".join(f"({vidx[vmap[k // nn]]},{vidx[vmap[k % nn]]})" for k in bad[:5])
+            raise InputError(f"repair: {len(bad)} non-manifold edges (input vertices {pairs}) cannot be "
+                             "separated by duplicating vertices; remove the triangles around them")
+    if len(nm_edges):
+        p.actions.append({"kind": "split_nonmanifold_edges", "count": int(len(nm_edges)),
+                          "examples": [[int(a), int(b)] for a, b in vidx[nm_edges[:5]]]})
+        p.warnings.append(f"split {len(nm_edges)} non-manifold edges (edges "
+                       f"{', '.join(f'({a},{b})' for a, b in vidx[nm_edges[:5]])}) by detaching triangles")
+    p.actions.append({"kind": "split_nonmanifold_vertices", "count": int(len(vmap) - n),
+                      "examples": _ex(vidx[split_v])})
+    p.F, p.V, p.vertex_index = G, p.V[vmap], vidx[vmap]
 
-    # 7. consistent winding
-    if len(F):
-        flip, vhi, vhj, vfi, vfj, okhi, okhj = _orient_parity(F, n)
-        if len(vfi):
-            # non-orientable: cut along the edges where the parity disagrees, then orient again
-            fan = _corner_fans(F, n, okhi, okhj)
-            G, vmap, _ = _vertices_per_fan(F, n, fan)
-            flip2, _, _, wfi, wfj, _, _ = _orient_parity(G, len(vmap))
-            if len(wfi):
-                faces = np.unique(np.concatenate([fidx[vfi], fidx[vfj]]))
-                raise InputError(f"repair: the mesh is not orientable around triangles {_list(faces)} (a "
-                                 "Moebius-like strip); cut it there or give those triangles their own segment label")
-            actions.append({"kind": "cut_nonorientable", "count": int(len(vfi)),
-                            "examples": _ex(np.unique(fidx[vfi]))})
-            warns.append(f"cut a non-orientable piece along {len(vfi)} edges (at triangles "
-                         f"{_list(np.unique(fidx[vfi]))}) so it can be oriented")
-            F, V, vidx, n, flip = G, V[vmap], vidx[vmap], len(vmap), flip2
-        if flip.any():
-            actions.append({"kind": "flip_faces", "count": int(flip.sum()), "examples": _ex(fidx[flip])})
-            F = F.copy()
-            F[flip] = F[flip][:, [0, 2, 1]]
 
-    # 8. specks
-    if len(F):
-        mm = len(F)
-        thr = min_component_faces
-        if thr is None:
-            thr = min(10, mm // 1000)
-        he, key = _edge_keys(F, n)
-        order = np.argsort(key, kind="stable")
-        ks = key[order]
-        same = np.flatnonzero(ks[1:] == ks[:-1])
-        fi, fj = order[same] // 3, order[same + 1] // 3
-        nc, comp = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(mm, mm)),
-                                        directed=False)
-        if nc > 1 and thr > 1:
-            size = np.bincount(comp, minlength=nc)
-            small = size < thr
-            small[np.argmax(size)] = False
-            drop = small[comp]
-            if drop.sum() > SPECK_SHARE * mm:
-                # not specks but the mesh itself (e.g. a triangle soup): keep every piece as a chart
-                drop[:] = False
-            if drop.any():
-                actions.append({"kind": "drop_small_components", "count": int(small.sum()),
-                                "faces": int(drop.sum()), "examples": _ex(fidx[drop]),
-                                "min_component_faces": int(thr)})
-                warns.append(f"dropped {int(small.sum())} small pieces (< {thr} triangles each, "
-                             f"{int(drop.sum())} triangles: {_list(fidx[drop])})")
-                F, fidx = F[~drop], fidx[~drop]
+def _orient(p: RepairResult) -> None:
+    """Step 7: consistent winding (a non-orientable piece is cut where the parity disagrees)."""
+    F, n, fidx = p.F, len(p.V), p.face_index
+    flip, vhi, vhj, vfi, vfj, okhi, okhj = _orient_parity(F, n)
+    if len(vfi):
+        # non-orientable: cut along the edges where the parity disagrees, then orient again
+        fan = _corner_fans(F, n, okhi, okhj)
+        G, vmap, _ = _vertices_per_fan(F, n, fan)
+        flip2, _, _, wfi, wfj, _, _ = _orient_parity(G, len(vmap))
+        if len(wfi):
+            faces = np.unique(np.concatenate([fidx[vfi], fidx[vfj]]))
+            raise InputError(f"repair: the mesh is not orientable around triangles {_list(faces)} (a "
+                             "Moebius-like strip); cut it there or give those triangles their own segment label")
+        p.actions.append({"kind": "cut_nonorientable", "count": int(len(vfi)),
+                          "examples": _ex(np.unique(fidx[vfi]))})
+        p.warnings.append(f"cut a non-orientable piece along {len(vfi)} edges (at triangles "
+                       f"{_list(np.unique(fidx[vfi]))}) so it can be oriented")
+        p.F, p.V, p.vertex_index, flip = G, p.V[vmap], p.vertex_index[vmap], flip2
+    if flip.any():
+        p.actions.append({"kind": "flip_faces", "count": int(flip.sum()), "examples": _ex(fidx[flip])})
+        p.F = p.F.copy()
+        p.F[flip] = p.F[flip][:, [0, 2, 1]]
 
-    # 9. unreferenced vertices
-    used = np.zeros(n, bool)
-    used[F.ravel()] = True
+
+def _drop_specks(p: RepairResult, min_component_faces: int | None) -> None:
+    """Step 8: pieces with fewer than ``min_component_faces`` triangles (never the largest piece)."""
+    F, mm = p.F, len(p.F)
+    thr = min(10, mm // 1000) if min_component_faces is None else min_component_faces
+    he, key = _edge_keys(F, len(p.V))
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    same = np.flatnonzero(ks[1:] == ks[:-1])
+    fi, fj = order[same] // 3, order[same + 1] // 3
+    nc, comp = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(mm, mm)),
+                                    directed=False)
+    if nc <= 1 or thr <= 1:
+        return
+    size = np.bincount(comp, minlength=nc)
+    small = size < thr
+    small[np.argmax(size)] = False
+    drop = small[comp]
+    if drop.sum() > SPECK_SHARE * mm:
+        # not specks but the mesh itself (e.g. a triangle soup): keep every piece as a chart
+        drop[:] = False
+    if drop.any():
+        p.actions.append({"kind": "drop_small_components", "count": int(small.sum()),
+                          "faces": int(drop.sum()), "examples": _ex(p.face_index[drop]),
+                          "min_component_faces": int(thr)})
+        p.warnings.append(f"dropped {int(small.sum())} small pieces (< {thr} triangles each, "
+                       f"{int(drop.sum())} triangles: {_list(p.face_index[drop])})")
+        p.F, p.face_index = F[~drop], p.face_index[~drop]
+
+
+def _drop_unreferenced(p: RepairResult) -> None:
+    """Step 9: unreferenced vertices."""
+    used = np.zeros(len(p.V), bool)
+    used[p.F.ravel()] = True
     if not used.all():
-        actions.append({"kind": "drop_unreferenced_vertices", "count": int((~used).sum()),
-                        "examples": _ex(vidx[~used])})
+        p.actions.append({"kind": "drop_unreferenced_vertices", "count": int((~used).sum()),
+                          "examples": _ex(p.vertex_index[~used])})
         new = np.cumsum(used) - 1
-        F = new[F]
-        V, vidx = V[used], vidx[used]
-    return V, F, fidx, vidx, actions, warns
+        p.F = new[p.F]
+        p.V, p.vertex_index = p.V[used], p.vertex_index[used]
 
 
 def _nonmanifold_full_detach(F, n):
@@ -444,7 +468,8 @@ def _nonmanifold_full_detach(F, n):
 SPECK_SHARE = 0.01
 
 
-def repair(V, F, *, min_component_faces=None, weld_tol=1e-9, weld=None):
+def repair(V: ArrayLike, F: ArrayLike, *, min_component_faces: int | None = None, weld_tol: float = 1e-9,
+           weld: bool | None = None) -> RepairResult:
     """Repair a triangle mesh so its pieces can become charts (see the module notes for the steps).
 
     Parameters
@@ -494,7 +519,8 @@ def repair(V, F, *, min_component_faces=None, weld_tol=1e-9, weld=None):
     return RepairResult(V, F, fidx, vidx, actions, warns)
 
 
-def _check_repair_input(V, F, min_component_faces, weld_tol):
+def _check_repair_input(V: ArrayLike, F: ArrayLike, min_component_faces: int | None, weld_tol: float
+                        ) -> tuple[np.ndarray, np.ndarray]:
     try:
         V = np.asarray(V, dtype=np.float64)
     except (TypeError, ValueError):

@@ -32,9 +32,11 @@ texel twice for that pair (it can still bleed through bilinear filtering or mip-
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
 from uvbake.validate import budgets
@@ -72,13 +74,13 @@ _RES_RANGE = (16, 16384)
 
 
 def validate(
-    uv,
-    F=None,
+    uv: ArrayLike,
+    F: ArrayLike | None = None,
     *,
-    chart_ids=None,
-    resolution_px=2048,
-    image_path=None,
-    allow_subpixel=False,
+    chart_ids: ArrayLike | None = None,
+    resolution_px: int = 2048,
+    image_path: str | os.PathLike[str] | None = None,
+    allow_subpixel: bool = False,
 ) -> ValidationReport:
     """Check that a UV layout is bijective: no flipped triangle, no two triangles overlapping.
 

@@ -18,11 +18,15 @@ Values are those of the solver's scale-free frame (mesh and map at unit mean edg
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse.linalg as spla
 
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
+
+if TYPE_CHECKING:
+    from uvbake.flatten.energy import DistortionEnergy
 
 # A stationary point is a local minimum when lambda_min >= -NEGATIVE_TOL * max |diag H|: the same
 # relative threshold as LM's saddle test (lm.SADDLE_EPS).
@@ -42,12 +46,12 @@ class Certificate:
     gauge_dim: int             # directions set aside (3 when nothing is pinned, 0 when pinned)
     hmax: float                # max |diag H|, the scale of the threshold
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, Any]:
         return dict(lambda_min=self.lambda_min, is_local_minimum=self.is_local_minimum,
                     certificate_gauge_dim=self.gauge_dim)
 
 
-def gauge_basis(energy, uv):
+def gauge_basis(energy: DistortionEnergy, uv: np.ndarray) -> np.ndarray:
     """Orthonormal columns spanning translations and rotation of ``uv`` over the free unknowns
     (empty when unknowns are pinned, which fixes the gauge)."""
     if energy.fixed.any():
@@ -65,7 +69,7 @@ def gauge_basis(energy, uv):
     return q
 
 
-def certify(energy, uv, *, linear_solver="auto", H=None):
+def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "auto", H: Any = None) -> Certificate:
     """The :class:`Certificate` of ``uv`` (per-vertex UVs in the energy's frame)."""
     if H is None:
         _, _, H = energy.evaluate(uv)

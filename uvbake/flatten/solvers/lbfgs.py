@@ -38,9 +38,12 @@ Measurements behind the constants: docs/decisions/lbfgs.md (bench/backends.py).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from uvbake.cancel import check_cancelled, is_cancelled
 from uvbake.errors import InputError
@@ -50,6 +53,9 @@ from uvbake.flatten.solvers.linalg import (
     cholmod_available,
 )
 from uvbake.flatten.solvers.result import MESSAGES, SolveResult, Status
+
+if TYPE_CHECKING:
+    from uvbake.flatten.energy import DistortionEnergy
 
 #: L-BFGS memory (stored correction pairs); docs/decisions/lbfgs.md
 VECTOR_STORAGE = 20
@@ -68,8 +74,10 @@ SCALE_MAX = 1e12
 REFRESH_EVERY = 50
 
 
-def lbfgs(energy, x0, *, uv_fixed, tol=1e-8, max_iter=1000, callback=None, vector_storage=None,
-          max_eval=None, restarts=50, precondition=None, refresh_every=None):
+def lbfgs(energy: DistortionEnergy, x0: ArrayLike, *, uv_fixed: ArrayLike, tol: float = 1e-8, max_iter: int = 1000,
+          callback: Callable[[dict[str, Any]], bool | None] | None = None, vector_storage: int | None = None,
+          max_eval: int | None = None, restarts: int = 50, precondition: str | None = None,
+          refresh_every: int | None = None) -> tuple[np.ndarray, SolveResult]:
     """Minimise ``energy`` (a :class:`uvbake.flatten.energy.DistortionEnergy`) with nlopt's LD_LBFGS.
 
     Parameters

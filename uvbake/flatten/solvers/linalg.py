@@ -18,8 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from uvbake.errors import InputError
-
-LINEAR_SOLVERS = ("auto", "cholmod", "superlu")
+from uvbake.flatten.options import LINEAR_SOLVERS
 
 
 class NotPositiveDefinite(Exception):
