@@ -228,33 +228,48 @@ def _check_chart(i: int, uv: Any, F: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bisect_scale(feasible: Callable[[float], Any], s_hi: float, lo: float | None = None,
-                 lo_payload: Any = None) -> tuple[Any, Any]:
+                 lo_payload: Any = None,
+                 lift: Callable[[float, Any], tuple[float, Any]] | None = None) -> tuple[Any, Any]:
     """Largest s <= s_hi with feasible(s) (assumed roughly monotone), to _REL_TOL; returns (s, payload).
 
     ``lo`` (with its ``lo_payload``) is a scale already known to be feasible; without it one is found by
-    halving from ``s_hi``.
+    halving from ``s_hi``. ``lift(s, payload)`` (optional) turns a feasible trial into a feasible
+    ``(s', payload')`` with ``s' >= s`` (a layout scaled up until it touches the border), which raises
+    the lower end of the bracket at no cost.
     """
+    def up(s, payload):
+        return (s, payload) if lift is None else lift(s, payload)
+
     if lo is None:
         payload = feasible(s_hi)
         if payload is not None:
             return s_hi, payload
-        s = s_hi
-        for _ in range(60):                       # find a feasible lower end by halving
-            s *= 0.5
+        s, down = s_hi, 0.5 if lift is None else 0.9       # a lift takes back most of a small step's loss
+        for _ in range(60 if lift is None else 300):      # find a feasible lower end by stepping down
+            s *= down
             lo_payload = feasible(s)
             if lo_payload is not None:
-                lo = s
+                lo, lo_payload = up(s, lo_payload)
                 break
         if lo is None:
             return None, None
-        hi = min(s_hi, 2 * lo)
+        hi = min(s_hi, s / down)
     else:
         hi = s_hi
+    if lift is not None:      # a lifted layout touches the border: the largest scale is usually just above
+        step = 2 * _REL_TOL
+        while lo * (1 + step) < hi:
+            p = feasible(lo * (1 + step))
+            if p is None:
+                hi = lo * (1 + step)
+                break
+            lo, lo_payload = up(lo * (1 + step), p)
+            step *= 4
     while hi - lo > _REL_TOL * hi:
         mid = 0.5 * (lo + hi)
         p = feasible(mid)
         if p is not None:
-            lo, lo_payload = mid, p
+            lo, lo_payload = up(mid, p)
         else:
             hi = mid
     return lo, lo_payload
@@ -276,7 +291,8 @@ def _pack_boxes(wh, pad, packers):
     """Largest common scale at which boxes ``s*wh + pad`` pack into the unit square, and where.
 
     ``packers`` are tried in turn: the first is bisected fully, each later one only has to beat the
-    best scale so far (one trial packing, then a bisection upwards if it does).
+    best scale so far (one trial packing, then a bisection upwards if it does). Every packing that
+    fits is scaled up about the origin until a box meets the border (:func:`_lift_boxes`).
     """
     s_hi = _upper_scale(wh, pad)
     if not np.isfinite(s_hi):
@@ -284,19 +300,36 @@ def _pack_boxes(wh, pad, packers):
     if s_hi <= 0:
         return None, None
     best_s, best_p = None, None
+
+    def lift(s, payload):
+        return _lift_boxes(wh, pad, s, payload, s_hi)
     for packer in packers:
         def feasible(s, packer=packer):
             return packer(s * wh + pad)
         if best_s is None:
-            best_s, best_p = bisect_scale(feasible, s_hi)
+            best_s, best_p = bisect_scale(feasible, s_hi, lift=lift)
             continue
         s_try = best_s * (1 + _REL_TOL)
         if s_try > s_hi:
             break
         p = feasible(s_try)
         if p is not None:
-            best_s, best_p = bisect_scale(feasible, s_hi, lo=s_try, lo_payload=p)
+            best_s, best_p = bisect_scale(feasible, s_hi, *lift(s_try, p), lift=lift)
     return best_s, best_p
+
+
+def _lift_boxes(wh, pad, s, payload, s_hi):
+    """A box layout that fits at scale ``s``, scaled by ``k >= 1`` about the origin until a box meets
+    the unit square's border: boxes ``k (s wh + pad)`` contain ``(k s) wh + pad`` and stay apart, so
+    ``(k s, k pos)`` is a valid layout too (a packing found at ``s`` proves the larger scale)."""
+    pos, turned = payload
+    size = s * wh + pad
+    size = np.where(turned[:, None], size[:, ::-1], size)
+    k = 1.0 / max(float((pos + size).max()), 1e-300)
+    k = min(k * (1.0 - 1e-12), s_hi / s)
+    if k <= 1.0:
+        return s, payload
+    return k * s, (k * pos, turned)
 
 
 def _own_packers(wh, allow_turn=True, rules=_RULES):
@@ -429,8 +462,17 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
                       texel_density=float(density))
 
 
+# "auto" on a square atlas at a free scale picks by how full the charts' minimum-area boxes are (chart
+# area / box area, summed): boxes leave only their empty corners to shapes. On the 15 sets of 2-64 charts
+# of bench/pack.py boxes won every set filled >= 0.84 (by 0.8-26 points) and lost every set filled < 0.74
+# (by 5-14 points); in between both run (docs/decisions/pack.md, release 2c).
+_BOXES_ONLY_FILL = 0.8
+_SHAPES_ONLY_FILL = 0.7
+
+
 def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
-    """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the denser wins).
+    """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the
+    denser wins), unless the boxes' fill decides alone (_BOXES_ONLY_FILL, _SHAPES_ONLY_FILL).
 
     One chart: its box in the square is what shapes reach too (they try the same angles), so the shape
     search is skipped; the shape search gives up once it cannot beat the boxes.
@@ -438,15 +480,29 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
     boxes = None
     rects = np.array([min_area_rect(uv) for uv in uvs]) if rotate else None
     if try_boxes and W == H and density is None and len(uvs) <= 64:
-        boxes = place_boxes(uvs, faces, W, g, rects=rects, rules=_AUTO_RULES) if rotate else \
-            _place_unrotated(uvs, faces, W, g)
-    shapes = None if boxes is not None and len(uvs) == 1 else _place_shapes(
-        uvs, faces, W, H, g, density, rotate, K, aspect, rects, guess=None if boxes is None else boxes[0] * W)
+        fill = _box_fill(uvs, faces, rects)
+        if len(uvs) == 1 or fill >= _SHAPES_ONLY_FILL:
+            boxes = place_boxes(uvs, faces, W, g, rects=rects, rules=_AUTO_RULES) if rotate else \
+                _place_unrotated(uvs, faces, W, g)
+        if boxes is not None and (len(uvs) == 1 or fill >= _BOXES_ONLY_FILL):
+            return (*boxes, W, H, boxes[0] * W, "maxrects")
+    shapes = _place_shapes(uvs, faces, W, H, g, density, rotate, K, aspect, rects,
+                           guess=None if boxes is None else boxes[0] * W)
     if boxes is not None and (shapes is None or boxes[0] > shapes[0] * (1 + 1e-12)):
-        s, rotation, offset, out, gap = boxes
-        return s, rotation, offset, out, gap, W, H, boxes[0] * W, "maxrects"
+        return (*boxes, W, H, boxes[0] * W, "maxrects")
     s, rotation, offset, out, gap, W, H, density = shapes
     return s, rotation, offset, out, gap, W, H, density, "shape"
+
+
+def _box_fill(uvs, faces, rects):
+    """Total chart area over the total area of the charts' boxes (minimum-area ones when ``rects``,
+    else axis-aligned)."""
+    area = sum(float(np.abs(signed_areas(uv, F)).sum()) for uv, F in zip(uvs, faces))
+    if rects is not None:
+        box = float((rects[:, 1] * rects[:, 2]).sum())
+    else:
+        box = float(sum(np.prod(np.ptp(uv, axis=0)) for uv in uvs))
+    return area / box if box > 0 else 1.0
 
 
 def _place_free_scale(uvs, faces, N, g, rotate, used):
