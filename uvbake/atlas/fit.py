@@ -120,7 +120,8 @@ def scale_to_border(packer: ShapePacker, p: ShapePacking, width: int, height: in
 
 
 def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, guess: float, *, coarse_px: int = 256,
-              packs: int = 5, floor: float | None = None, rounds: int = 2) -> ShapePacking | None:
+              packs: int = 5, floor: float | None = None, rounds: int = 2,
+              order_packs: int = 2) -> ShapePacking | None:
     """Largest common density found by packing the charts once rasterised, in strips of several widths.
 
     The charts are rasterised once, ``c`` times coarser than the atlas (as in fit_scale), at a density
@@ -129,8 +130,9 @@ def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, gues
     wasted on a density that does not fit, and the footprints are reused). The next width steers the
     layout's aspect towards the atlas's. When no width fits, the density is lowered by 0.8 and the
     widths tried again; ``rounds - 1`` more rounds start at 0.95 of the best density found. With
-    ``floor`` (a density to beat) a round stops after two trials below it. Returns the densest
-    full-resolution ShapePacking, or None.
+    ``floor`` (a density to beat) a round stops after two trials below it. Then each other chart
+    order of the packer (``packer.orders``) gets ``order_packs`` trials on the best round's raster,
+    from its best width. Returns the densest full-resolution ShapePacking, or None.
     """
     g = int(gutter_px)
     c = _coarse_factor(width, height, coarse_px)
@@ -145,10 +147,16 @@ def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, gues
         if best is None:                      # from the best width scaled to it, two trials
             break
         d1 = 0.95 * best.density / c
-        q, _ = _width_trials(packer, width, height, g, c, cg, d1, int(round(w * d1 / d0)), 2, floor)
+        q, w1 = _width_trials(packer, width, height, g, c, cg, d1, int(round(w * d1 / d0)), 2, floor)
         if q is None or q.density <= best.density:
             break
-        best, d0 = q, d1
+        best, d0, w = q, d1, w1
+    if best is None:
+        return None
+    for order in packer.orders[1:] if order_packs else []:     # the same raster, other chart orders
+        q, _ = _width_trials(packer, width, height, g, c, cg, d0, w, order_packs, floor, order=order)
+        if q is not None and q.density > best.density:
+            best = q
     return best
 
 
@@ -169,7 +177,7 @@ def _layout_box(packer, p):
     return lo, hi
 
 
-def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor):
+def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor, order=None):
     """fit_width's trials at one coarse density ``d0`` from strip width ``w``: the densest scaled
     layout (or None) and its strip width. Widths move by 0.8 % at least, else the trials stop."""
     cw, ch = width // c, height // c
@@ -180,7 +188,7 @@ def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor):
         if w in tried:
             break
         tried.add(w)
-        p = packer.pack(d0, w, None, cg, give_up_above=4 * ch)
+        p = packer.pack(d0, w, None, cg, give_up_above=4 * ch, order=order)
         q = None if p is None or not p.complete else scale_to_border(packer, p, width, height, g, c, cg)
         if q is not None and (best is None or q.density > best.density):
             best, best_w = q, w

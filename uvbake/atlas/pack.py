@@ -533,16 +533,27 @@ def _shape_angles(n, rects, rotate, few):
     return angles
 
 
+# the free-scale shape search (docs/decisions/pack.md, release 2c): from 64 charts fit_scale (full
+# resolution trials), below one raster in strips of several widths (fit_width), 512 texels a side from 12
+# charts on meshes of >= 4096 faces (xatlas:bumpy, camelhead, cow +1.8..+3 points over 256 texels, at
+# about twice the time), else 256 (small meshes: the rest of the command is short)
+_FIT_SCALE_FROM = 64
+_FINE_RASTER_FACES = 4096
+
+
 def _fit_free_scale(packer, W, H, g, guess, few):
     """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
-    if len(packer.uvs) >= 32:   # fit_width below: 2-5x faster from 12 charts on, -1.6..+1.5 points
+    n = len(packer.uvs)
+    if n >= _FIT_SCALE_FROM:
         p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
-    else:       # few charts: one raster, strips of several widths, each layout scaled to the atlas
+    else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
+        faces = sum(len(F) for F in packer.faces)
+        coarse = 512 if n >= 12 and faces >= _FINE_RASTER_FACES else 256
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess, rounds=1 if few else 2)
+                      floor=guess, rounds=1 if few else 2, coarse_px=coarse)
     if p is None and guess is not None:
         return None
     if p is None:

@@ -323,7 +323,23 @@ class ShapePacker:
             self.flipped.append(np.flatnonzero(sa * major <= 0))
             self.area[i] = np.abs(sa).sum()
         self.order = np.lexsort((np.arange(len(uvs)), -self.area))      # biggest first, ties by index
+        self.orders = [self.order]
+        for key in self._order_keys():                                   # other orders, distinct ones only
+            o = np.lexsort((np.arange(len(uvs)), -key))
+            if not any(np.array_equal(o, q) for q in self.orders):
+                self.orders.append(o)
         self._density, self._cands, self._dilated = None, {}, {}          # footprints at the last density
+
+    def _order_keys(self):
+        """Keys of the other chart orders the searches may try (biggest first by each): boundary length,
+        then the short side of the chart's box (the extent across its principal direction)."""
+        perim, short = np.zeros(len(self.uvs)), np.zeros(len(self.uvs))
+        for i, (uv, b) in enumerate(zip(self.uvs, self.bedges)):       # one iteration per chart
+            perim[i] = np.linalg.norm(uv[b[:, 0]] - uv[b[:, 1]], axis=1).sum()
+            c = uv - uv.mean(axis=0)
+            ev = np.linalg.eigvalsh(c.T @ c / max(len(uv), 1))
+            short[i] = np.sqrt(max(ev[0], 0.0))
+        return [perim, short]
 
     def _cached(self, i, density):
         """Chart i's candidates at ``density`` with their runs; kept while the density stays the same
@@ -366,7 +382,7 @@ class ShapePacker:
                 t = np.array([h - t[1], t[0]])
 
     def pack(self, density: float, width: int, height: int | None, gutter_px: int, *,
-             give_up_above: int | None = None) -> ShapePacking | None:
+             give_up_above: int | None = None, order: np.ndarray | None = None) -> ShapePacking | None:
         """Bottom-left fill of a ``width``-texel strip (``height`` rows at most, None: unbounded).
 
         Returns a ShapePacking, or None when some chart does not fit. With ``give_up_above`` the packing
@@ -380,7 +396,7 @@ class ShapePacker:
         n = len(self.uvs)
         rotation, offset = np.zeros(n), np.zeros((n, 2))
         placed = 0.0
-        for i in self.order:                      # one iteration per chart; the search inside is numpy
+        for i in self.order if order is None else order:    # one iteration per chart; the search is numpy
             best = None
             for r, (fp, theta, t, runs) in enumerate(self._cached(i, density)):
                 pos = atlas.find(runs, fp.shape[0], fp.shape[1], top_bound=None if best is None else best[0][0])
