@@ -398,7 +398,11 @@ class ShapePacker:
         placed = 0.0
         for i in self.order if order is None else order:    # one iteration per chart; the search is numpy
             best = None
-            for r, (fp, theta, t, runs) in enumerate(self._cached(i, density)):
+            cands = self._cached(i, density)
+            # the flattest rotations first: their top edges bound the search of the others (the lowest
+            # top edge wins, ties by y, x, rotation index, so the order tried does not change the result)
+            for r in sorted(range(len(cands)), key=lambda r: (cands[r][0].shape[0], r)):
+                fp, theta, t, runs = cands[r]
                 pos = atlas.find(runs, fp.shape[0], fp.shape[1], top_bound=None if best is None else best[0][0])
                 if pos is None:
                     continue
