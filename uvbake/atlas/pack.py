@@ -534,11 +534,13 @@ def _shape_angles(n, rects, rotate, few):
 
 
 # the free-scale shape search (docs/decisions/pack.md, release 2c): from 64 charts fit_scale (full
-# resolution trials), below one raster in strips of several widths (fit_width), 512 texels a side from 12
-# charts on meshes of >= 4096 faces (xatlas:bumpy, camelhead, cow +1.8..+3 points over 256 texels, at
-# about twice the time), else 256 (small meshes: the rest of the command is short)
+# resolution trials); below, one raster in strips of several widths (fit_width). The raster is 512 texels
+# a side on meshes of >= 8192 faces (their commands take seconds; fandisk, camelhead, beetle), else 256
+# (cow 512 -> 256: 66.8 -> 62.8 %, 3x faster; the rest of a small mesh's command is short). Other chart
+# orders are tried on big meshes and up to 8 charts (each order costs a placement of every chart).
 _FIT_SCALE_FROM = 64
-_FINE_RASTER_FACES = 4096
+_BIG_MESH_FACES = 8192
+_ORDERS_UP_TO = 8
 
 
 def _fit_free_scale(packer, W, H, g, guess, few):
@@ -550,10 +552,10 @@ def _fit_free_scale(packer, W, H, g, guess, few):
         p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
-        faces = sum(len(F) for F in packer.faces)
-        coarse = 512 if n >= 12 and faces >= _FINE_RASTER_FACES else 256
+        big = sum(len(F) for F in packer.faces) >= _BIG_MESH_FACES
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess, rounds=1 if few else 2, coarse_px=coarse)
+                      floor=guess, rounds=1 if few else 2, coarse_px=512 if big else 256,
+                      order_packs=2 if big or n <= _ORDERS_UP_TO else 0)
     if p is None and guess is not None:
         return None
     if p is None:
