@@ -256,15 +256,17 @@ def bisect_scale(feasible: Callable[[float], Any], s_hi: float, lo: float | None
         hi = min(s_hi, s / down)
     else:
         hi = s_hi
-    if lift is not None:      # a lifted layout touches the border: the largest scale is usually just above
-        step = 2 * _REL_TOL
+    if lift is not None:      # a lifted layout touches the border: probe geometrically above it
+        step, fails = 2 * _REL_TOL, []
         while lo * (1 + step) < hi:
-            p = feasible(lo * (1 + step))
+            s = lo * (1 + step)
+            p = feasible(s)
             if p is None:
-                hi = lo * (1 + step)
-                break
-            lo, lo_payload = up(lo * (1 + step), p)
+                fails.append(s)
+            else:
+                lo, lo_payload = up(s, p)
             step *= 4
+        hi = min([f for f in fails if f > lo] + [hi])
     while hi - lo > _REL_TOL * hi:
         mid = 0.5 * (lo + hi)
         p = feasible(mid)
