@@ -252,15 +252,18 @@ class _Atlas:
         while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
             yc = ys[k0:k0 + _CHUNK]
             k0 += _CHUNK
-            # dense phase: runs tested on every position of the chunk (row gather + column slice)
-            ok = self.run[yc + dy[0], a[0]:a[0] + nx] >= L[0]
+            # dense phase: runs tested on every position of the chunk (consecutive candidate rows, the
+            # usual case, are a view of the run table; others a row gather), then a column slice
+            y0, n = int(yc[0]), len(yc)
+            rows = (lambda d: slice(y0 + d, y0 + d + n)) if int(yc[-1]) - y0 == n - 1 else (lambda d: yc + d)
+            ok = self.run[rows(dy[0]), a[0]:a[0] + nx] >= L[0]
             k = 1
             while k < len(dy):
-                ok &= self.run[yc + dy[k], a[k]:a[k] + nx] >= L[k]
+                ok &= self.run[rows(dy[k]), a[k]:a[k] + nx] >= L[k]
                 k += 1
                 if k % 4 == 0 and (k >= 16 or np.count_nonzero(ok) < nx):
                     break                     # survivors go to the sparse phase, which stops at the first fit
-            yi, xi = np.nonzero(ok)           # row-major: bottom-left first
+            yi, xi = np.divmod(np.flatnonzero(ok), nx)       # row-major: bottom-left first
             for b0 in range(0, len(yi), _BATCH):      # sparse phase: the other runs on the survivors
                 cy, cx = yc[yi[b0:b0 + _BATCH]], xi[b0:b0 + _BATCH]
                 j, step = k, 4
