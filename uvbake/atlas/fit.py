@@ -115,7 +115,10 @@ def scale_to_border(packer: ShapePacker, p: ShapePacking, width: int, height: in
     k *= 1.0 - 1e-9                          # rounding must never push a chart past the margin
     if k * c * cg < g * (1 + 1e-9) or k <= 0:
         return p if c == 1 else None         # at c = 1, p itself is valid
-    return ShapePacking(density=p.density * c * k, rotation=p.rotation, offset=(p.offset - lo) * c * k + m,
+    # the box moved to m plus a hair (rounding of the translation must not put a vertex below m; the
+    # 1e-9 taken off k leaves more room than that at the far side)
+    m_low = m + 1e-10 * max(width, height)
+    return ShapePacking(density=p.density * c * k, rotation=p.rotation, offset=(p.offset - lo) * c * k + m_low,
                         height_used=int(np.ceil((hi[1] - lo[1]) * c * k + 2 * m)), complete=p.complete)
 
 
