@@ -4,8 +4,8 @@ import json
 
 import numpy as np
 import pytest
-
 from batchkit import good_meshes
+
 from uvbake.errors import InputError
 
 

@@ -6,15 +6,15 @@ Distances are checked with test_pack's independent helpers (vertex-to-triangle d
 
 import numpy as np
 import pytest
+from test_shapepack import holed_chart, mixed_charts
 
 import uvbake.atlas.pack as pack_module
 from uvbake.atlas.fit import fit_width, scale_to_border
-from uvbake.atlas.maxrects import _maxrects, _orders
-from uvbake.atlas.pack import _lift_boxes, _pack_boxes, _upper_scale, bisect_scale, pack_charts
+from uvbake.atlas.maxrects import _lift_boxes, _maxrects, _orders, _pack_boxes, _upper_scale, bisect_scale
+from uvbake.atlas.pack import pack_charts
 from uvbake.atlas.shapepack import ShapePacker
 
 from test_pack import grid_chart, min_gap, signed_areas, star_chart
-from test_shapepack import holed_chart, mixed_charts
 
 
 def _boxes_ok(sizes, pos, turned, tol=1e-12):
