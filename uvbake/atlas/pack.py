@@ -419,7 +419,8 @@ def _shape_angles(n, rects, rotate, few):
 # resolution trials); below, one raster in strips of several widths (fit_width). The raster is 512 texels
 # a side on meshes of >= 8192 faces (their commands take seconds; fandisk, camelhead, beetle), else 256
 # (cow 512 -> 256: 66.8 -> 62.8 %, 3x faster; the rest of a small mesh's command is short). Other chart
-# orders are tried on big meshes and up to 8 charts (each order costs a placement of every chart). One
+# orders are tried on big meshes and for 5-8 charts (each order costs a placement of every chart; up to 4
+# charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the time). One
 # round of widths: a second one under the best density (another raster) took 30 % of the time for
 # -0.2..+0.6 points (cow +0.1, camelhead +0.6, fandisk -0.2).
 _FIT_SCALE_FROM = 64
@@ -439,7 +440,7 @@ def _fit_free_scale(packer, W, H, g, guess):
         big = sum(len(F) for F in packer.faces) >= _BIG_MESH_FACES
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
                       floor=guess, rounds=1, coarse_px=512 if big else 256,
-                      order_packs=2 if big or n <= _ORDERS_UP_TO else 0)
+                      order_packs=2 if big or 4 < n <= _ORDERS_UP_TO else 0)
     if p is None and guess is not None:
         return None
     if p is None:
