@@ -173,7 +173,8 @@ def _check_gutter(gutter_px, mip_levels, W, H):
     return g
 
 
-def _check_density(texel_density):
+def check_texel_density(texel_density: Any) -> float | None:
+    """``texel_density`` as a float (None stays None: the scale is fitted), or InputError naming it."""
     if texel_density is None:
         return None
     try:
@@ -309,7 +310,7 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
 
     t0 = time.perf_counter()
     uvs, faces = _check_inputs(chart_uvs, chart_faces, method)
-    density = _check_density(texel_density)
+    density = check_texel_density(texel_density)
     W, H = _check_size(texture_size_px, density)
     g = _check_gutter(gutter_px, mip_levels, W, H)
     if not isinstance(rotate, (bool, np.bool_)):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import io as _io
-import math
 import os
 import shutil
 import sys
@@ -47,6 +46,7 @@ def normalise_options(**options: Any) -> dict[str, Any]:
     Raises InputError naming the option (by its Python name) for anything not usable.
     """
     from uvbake import __version__
+    from uvbake.atlas.pack import check_texel_density
     from uvbake.atlas.pipeline import BAKE_MODES, check_texture
     from uvbake.batch.child import ATLAS_IMAGES
     from uvbake.flatten.options import SolveOptions
@@ -62,7 +62,7 @@ def normalise_options(**options: Any) -> dict[str, Any]:
     u["alpha"] = SolveOptions(alpha=u["alpha"], init=u["init"], backend=u["backend"], tol=u["tol"],
                               max_iter=u["max_iter"]).alpha
     u["tol"], u["max_iter"], u["seed"] = float(u["tol"]), int(u["max_iter"]), int(u["seed"])
-    u["texel_density"] = _check_density(u["texel_density"])
+    u["texel_density"] = check_texel_density(u["texel_density"])
     check_texture(u["texture_size_px"], u["gutter_px"], u["texel_density"])
     u["gutter_px"] = int(u["gutter_px"])
     u["texture_size_px"] = None if u["texture_size_px"] is None else int(u["texture_size_px"])
@@ -78,19 +78,6 @@ def normalise_options(**options: Any) -> dict[str, Any]:
         raise InputError(f"atlas_image={o['atlas_image']!r} is not one of None, 'auto', "
                          f"{', '.join(repr(k) for k in ATLAS_IMAGES)}")
     return dict(unwrap=u, **o, uvbake=__version__)
-
-
-def _check_density(value: Any) -> float | None:
-    """``texel_density`` as a float (None: the scale fits each atlas), or InputError."""
-    if value is None:
-        return None
-    try:
-        d = float(value)
-    except (TypeError, ValueError):
-        d = float("nan")
-    if isinstance(value, bool) or not math.isfinite(d) or d <= 0:
-        raise InputError(f"texel_density={value!r} is not a positive number; pass texels per world unit, e.g. 512")
-    return d
 
 
 def run(inputs: Any, out_dir: str | os.PathLike[str], client: Any = None, *, scheduler: str | None = None,
