@@ -153,3 +153,26 @@ def test_the_rotation_chosen_has_the_lowest_top_edge_whatever_order_rotations_ar
     monkeypatch.setattr(sp, "sorted", reverse_sorted, raising=False)
     b = ShapePacker(uvs, faces, [np.array([0.0, 0.4])] * len(uvs)).pack(6.0, 96, None, 2)
     assert np.array_equal(a.offset, b.offset) and np.array_equal(a.rotation, b.rotation)
+
+
+def test_a_strip_taller_than_the_atlas_is_never_returned_as_a_packing():
+    """At full resolution (c = 1) a layout whose box exceeds the atlas cannot be scaled up into it: None
+    (the fuzz test found a 64-texel atlas with a vertex at u = 1.05 before this was checked)."""
+    uvs, faces = mixed_charts(2, n=6)
+    W = H = 64
+    g = 1
+    packer = ShapePacker(uvs, faces, [np.zeros(1)] * len(uvs))
+    d = np.sqrt(W * H / packer.area.sum())           # every chart's area at this density fills the atlas
+    p = packer.pack(0.8 * d, W, None, g)             # too dense: a strip taller than the atlas
+    assert p is not None and p.height_used > H
+    assert scale_to_border(packer, p, W, H, g) is None
+
+
+@pytest.mark.parametrize("size", [32, 64])
+@pytest.mark.parametrize("seed", range(3))
+def test_small_atlases_keep_every_chart_inside_and_apart(seed, size):
+    uvs, faces = mixed_charts(seed, n=5)
+    r = pack_charts(uvs, faces, texture_size_px=size, gutter_px=1)
+    P = np.vstack(r.uv)
+    assert P.min() >= 0.5 / size * (1 - 1e-9) and P.max() <= 1 - 0.5 / size * (1 - 1e-9)
+    assert min_gap(r.uv, faces) * size >= 1 - 1e-9

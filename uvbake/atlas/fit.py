@@ -111,13 +111,18 @@ def scale_to_border(packer: ShapePacker, p: ShapePacking, width: int, height: in
     m = (g + 1) // 2
     lo, hi = _layout_box(packer, p)
     # the layout's box [lo, hi] (coarse texels) scaled by c k and moved to start at the margin m
-    k = float(np.min((np.array([width, height], float) - 2 * m) / np.maximum(c * (hi - lo), 1e-300)))
-    k *= 1.0 - 1e-9                          # rounding must never push a chart past the margin
-    if k * c * cg < g * (1 + 1e-9) or k <= 0:
-        return p if c == 1 else None         # at c = 1, p itself is valid
+    k_fit = float(np.min((np.array([width, height], float) - 2 * m) / np.maximum(c * (hi - lo), 1e-300)))
+    k = k_fit * (1.0 - 1e-9)                 # rounding must never push a chart past the margin
     # the box moved to m plus a hair (rounding of the translation must not put a vertex below m; the
     # 1e-9 taken off k leaves more room than that at the far side)
     m_low = m + 1e-10 * max(width, height)
+    if k * c * cg < g * (1 + 1e-9) or k <= 0:
+        if c != 1 or k_fit < 1 - 1e-9:       # a layout larger than the atlas (a strip taller than it)
+            return None
+        if k_fit < 1 + 1e-9:                 # p fills the atlas already: p itself (placed inside its strip)
+            return p
+        return ShapePacking(density=p.density, rotation=p.rotation, offset=p.offset - lo + m_low,
+                            height_used=int(np.ceil(hi[1] - lo[1] + 2 * m)), complete=p.complete)
     return ShapePacking(density=p.density * c * k, rotation=p.rotation, offset=(p.offset - lo) * c * k + m_low,
                         height_used=int(np.ceil((hi[1] - lo[1]) * c * k + 2 * m)), complete=p.complete)
 
