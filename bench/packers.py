@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from uvbake.atlas.distance import min_chart_distance
-from uvbake.atlas.maxrects import min_area_rect, rotation_2d
-from uvbake.atlas.pack import bisect_scale, place_boxes
+from uvbake.atlas.maxrects import bisect_scale, min_area_rect, rotation_2d
+from uvbake.atlas.pack import place_boxes
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import rigid_align, signed_areas
 

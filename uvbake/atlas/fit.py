@@ -111,16 +111,25 @@ def scale_to_border(packer: ShapePacker, p: ShapePacking, width: int, height: in
     m = (g + 1) // 2
     lo, hi = _layout_box(packer, p)
     # the layout's box [lo, hi] (coarse texels) scaled by c k and moved to start at the margin m
-    k = float(np.min((np.array([width, height], float) - 2 * m) / np.maximum(c * (hi - lo), 1e-300)))
-    k *= 1.0 - 1e-9                          # rounding must never push a chart past the margin
+    k_fit = float(np.min((np.array([width, height], float) - 2 * m) / np.maximum(c * (hi - lo), 1e-300)))
+    k = k_fit * (1.0 - 1e-9)                 # rounding must never push a chart past the margin
+    # the box moved to m plus a hair (rounding of the translation must not put a vertex below m; the
+    # 1e-9 taken off k leaves more room than that at the far side)
+    m_low = m + 1e-10 * max(width, height)
     if k * c * cg < g * (1 + 1e-9) or k <= 0:
-        return p if c == 1 else None         # at c = 1, p itself is valid
-    return ShapePacking(density=p.density * c * k, rotation=p.rotation, offset=(p.offset - lo) * c * k + m,
+        if c != 1 or k_fit < 1 - 1e-9:       # a layout larger than the atlas (a strip taller than it)
+            return None
+        if k_fit < 1 + 1e-9:                 # p fills the atlas already: p itself (placed inside its strip)
+            return p
+        return ShapePacking(density=p.density, rotation=p.rotation, offset=p.offset - lo + m_low,
+                            height_used=int(np.ceil(hi[1] - lo[1] + 2 * m)), complete=p.complete)
+    return ShapePacking(density=p.density * c * k, rotation=p.rotation, offset=(p.offset - lo) * c * k + m_low,
                         height_used=int(np.ceil((hi[1] - lo[1]) * c * k + 2 * m)), complete=p.complete)
 
 
 def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, guess: float, *, coarse_px: int = 256,
-              packs: int = 5, floor: float | None = None, rounds: int = 2) -> ShapePacking | None:
+              packs: int = 5, floor: float | None = None, rounds: int = 2,
+              order_packs: int = 2) -> ShapePacking | None:
     """Largest common density found by packing the charts once rasterised, in strips of several widths.
 
     The charts are rasterised once, ``c`` times coarser than the atlas (as in fit_scale), at a density
@@ -129,8 +138,9 @@ def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, gues
     wasted on a density that does not fit, and the footprints are reused). The next width steers the
     layout's aspect towards the atlas's. When no width fits, the density is lowered by 0.8 and the
     widths tried again; ``rounds - 1`` more rounds start at 0.95 of the best density found. With
-    ``floor`` (a density to beat) a round stops after two trials below it. Returns the densest
-    full-resolution ShapePacking, or None.
+    ``floor`` (a density to beat) a round stops after two trials below it. Then each other chart
+    order of the packer (``packer.orders``) gets ``order_packs`` trials on the best round's raster,
+    from its best width. Returns the densest full-resolution ShapePacking, or None.
     """
     g = int(gutter_px)
     c = _coarse_factor(width, height, coarse_px)
@@ -145,10 +155,16 @@ def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, gues
         if best is None:                      # from the best width scaled to it, two trials
             break
         d1 = 0.95 * best.density / c
-        q, _ = _width_trials(packer, width, height, g, c, cg, d1, int(round(w * d1 / d0)), 2, floor)
+        q, w1 = _width_trials(packer, width, height, g, c, cg, d1, int(round(w * d1 / d0)), 2, floor)
         if q is None or q.density <= best.density:
             break
-        best, d0 = q, d1
+        best, d0, w = q, d1, w1
+    if best is None:
+        return None
+    for order in packer.orders[1:] if order_packs else []:     # the same raster, other chart orders
+        q, _ = _width_trials(packer, width, height, g, c, cg, d0, w, order_packs, floor, order=order)
+        if q is not None and q.density > best.density:
+            best = q
     return best
 
 
@@ -169,7 +185,7 @@ def _layout_box(packer, p):
     return lo, hi
 
 
-def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor):
+def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor, order=None):
     """fit_width's trials at one coarse density ``d0`` from strip width ``w``: the densest scaled
     layout (or None) and its strip width. Widths move by 0.8 % at least, else the trials stop."""
     cw, ch = width // c, height // c
@@ -180,7 +196,7 @@ def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor):
         if w in tried:
             break
         tried.add(w)
-        p = packer.pack(d0, w, None, cg, give_up_above=4 * ch)
+        p = packer.pack(d0, w, None, cg, give_up_above=4 * ch, order=order)
         q = None if p is None or not p.complete else scale_to_border(packer, p, width, height, g, c, cg)
         if q is not None and (best is None or q.density > best.density):
             best, best_w = q, w

@@ -1,6 +1,10 @@
-"""Rectangle packing: minimum-area bounding rectangles and the MaxRects packer."""
+"""Rectangle packing: minimum-area bounding rectangles, the MaxRects packer and the search for the largest
+common scale at which a set of boxes packs (with layouts lifted to the border)."""
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -172,3 +176,120 @@ def _orders(wh):
         if o not in out:
             out.append(o)
     return [np.array(o) for o in out]
+
+
+# ------------------------------------------------------------- the common scale of a box packing
+
+_REL_TOL = 1e-3          # relative precision of the scale bisection
+
+
+def bisect_scale(feasible: Callable[[float], Any], s_hi: float, lo: float | None = None,
+                 lo_payload: Any = None,
+                 lift: Callable[[float, Any], tuple[float, Any]] | None = None) -> tuple[Any, Any]:
+    """Largest s <= s_hi with feasible(s) (assumed roughly monotone), to _REL_TOL; returns (s, payload).
+
+    ``lo`` (with its ``lo_payload``) is a scale already known to be feasible; without it one is found by
+    halving from ``s_hi``. ``lift(s, payload)`` (optional) turns a feasible trial into a feasible
+    ``(s', payload')`` with ``s' >= s`` (a layout scaled up until it touches the border), which raises
+    the lower end of the bracket at no cost.
+    """
+    def up(s, payload):
+        return (s, payload) if lift is None else lift(s, payload)
+
+    if lo is None:
+        payload = feasible(s_hi)
+        if payload is not None:
+            return s_hi, payload
+        s, down = s_hi, 0.5 if lift is None else 0.9       # a lift takes back most of a small step's loss
+        for _ in range(60 if lift is None else 300):      # find a feasible lower end by stepping down
+            s *= down
+            lo_payload = feasible(s)
+            if lo_payload is not None:
+                lo, lo_payload = up(s, lo_payload)
+                break
+        if lo is None:
+            return None, None
+        hi = min(s_hi, s / down)
+    else:
+        hi = s_hi
+    if lift is not None:      # a lifted layout touches the border: probe geometrically above it
+        step, fails = 2 * _REL_TOL, []
+        while lo * (1 + step) < hi:
+            s = lo * (1 + step)
+            p = feasible(s)
+            if p is None:
+                fails.append(s)
+            else:
+                lo, lo_payload = up(s, p)
+            step *= 4
+        hi = min([f for f in fails if f > lo] + [hi])
+    while hi - lo > _REL_TOL * hi:
+        mid = 0.5 * (lo + hi)
+        p = feasible(mid)
+        if p is not None:
+            lo, lo_payload = up(mid, p)
+        else:
+            hi = mid
+    return lo, lo_payload
+
+
+def _upper_scale(wh, pad):
+    """Scale above which the padded boxes cannot fit the unit square (area and side bounds)."""
+    w, h = wh[:, 0], wh[:, 1]
+    A, B, C = (w * h).sum(), pad * (w + h).sum(), len(w) * pad * pad - 1.0
+    if C >= 0:
+        return 0.0
+    s_area = (-B + np.sqrt(B * B - 4 * A * C)) / (2 * A) if A > 0 else np.inf
+    side = np.maximum(w, h).max()
+    s_side = (1.0 - pad) / side if side > 0 else np.inf
+    return float(min(s_area, s_side))
+
+
+def _pack_boxes(wh, pad, packers):
+    """Largest common scale at which boxes ``s*wh + pad`` pack into the unit square, and where.
+
+    ``packers`` are tried in turn: the first is bisected fully, each later one only has to beat the
+    best scale so far (one trial packing, then a bisection upwards if it does). Every packing that
+    fits is scaled up about the origin until a box meets the border (:func:`_lift_boxes`).
+    """
+    s_hi = _upper_scale(wh, pad)
+    if not np.isfinite(s_hi):
+        s_hi = 1.0
+    if s_hi <= 0:
+        return None, None
+    best_s, best_p = None, None
+
+    def lift(s, payload):
+        return _lift_boxes(wh, pad, s, payload, s_hi)
+    for packer in packers:
+        def feasible(s, packer=packer):
+            return packer(s * wh + pad)
+        if best_s is None:
+            best_s, best_p = bisect_scale(feasible, s_hi, lift=lift)
+            continue
+        s_try = best_s * (1 + _REL_TOL)
+        if s_try > s_hi:
+            break
+        p = feasible(s_try)
+        if p is not None:
+            best_s, best_p = bisect_scale(feasible, s_hi, *lift(s_try, p), lift=lift)
+    return best_s, best_p
+
+
+def _lift_boxes(wh, pad, s, payload, s_hi):
+    """A box layout that fits at scale ``s``, scaled by ``k >= 1`` about the origin until a box meets
+    the unit square's border: boxes ``k (s wh + pad)`` contain ``(k s) wh + pad`` and stay apart, so
+    ``(k s, k pos)`` is a valid layout too (a packing found at ``s`` proves the larger scale)."""
+    pos, turned = payload
+    size = s * wh + pad
+    size = np.where(turned[:, None], size[:, ::-1], size)
+    k = 1.0 / max(float((pos + size).max()), 1e-300)
+    k = min(k * (1.0 - 1e-12), s_hi / s)
+    if k <= 1.0:
+        return s, payload
+    return k * s, (k * pos, turned)
+
+
+def _own_packers(wh, allow_turn=True, rules=_RULES):
+    """One packer per (placement rule, order) pair."""
+    return [lambda sizes, o=o, r=r: _maxrects(sizes, o, r, allow_turn) for r in rules for o in _orders(wh)]

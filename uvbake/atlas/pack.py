@@ -20,7 +20,8 @@ the atlas border, by construction.
 
 Method ``"auto"`` (the default) is "shape"; for a square atlas of at most 64 charts at a free scale it
 also runs "maxrects" and keeps the denser packing (near-rectangular charts, like sample_scenes/scene.ply,
-pack denser as boxes).
+pack denser as boxes), or runs one alone when the charts fill their minimum-area boxes to >= 0.8 (boxes)
+or < 0.7 (shapes).
 
 Other placers plug in as ``method=placer`` (bench/packers.py wraps the peers xatlas and rectpack).
 
@@ -45,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.atlas.maxrects import _RULES, _maxrects, _orders, min_area_rect, rotation_2d
+from uvbake.atlas.maxrects import _RULES, _own_packers, _pack_boxes, min_area_rect, rotation_2d
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import signed_areas
 
@@ -55,7 +56,6 @@ METHODS = ("auto", "shape", "maxrects")
 DEFAULT_METHOD = "shape"
 
 _EPS_PAD = 1e-9          # extra padding in atlas units, so rounding never eats into the gutter
-_REL_TOL = 1e-3          # relative precision of the scale bisection
 
 
 @dataclass
@@ -173,7 +173,8 @@ def _check_gutter(gutter_px, mip_levels, W, H):
     return g
 
 
-def _check_density(texel_density):
+def check_texel_density(texel_density: Any) -> float | None:
+    """``texel_density`` as a float (None stays None: the scale is fitted), or InputError naming it."""
     if texel_density is None:
         return None
     try:
@@ -222,88 +223,6 @@ def _check_chart(i: int, uv: Any, F: Any) -> tuple[np.ndarray, np.ndarray]:
     return uv, F.astype(np.int64)
 
 
-# --------------------------------------------------------------------------------------- geometry
-
-# ----------------------------------------------------------------------------- own MaxRects packer
-
-
-def bisect_scale(feasible: Callable[[float], Any], s_hi: float, lo: float | None = None,
-                 lo_payload: Any = None) -> tuple[Any, Any]:
-    """Largest s <= s_hi with feasible(s) (assumed roughly monotone), to _REL_TOL; returns (s, payload).
-
-    ``lo`` (with its ``lo_payload``) is a scale already known to be feasible; without it one is found by
-    halving from ``s_hi``.
-    """
-    if lo is None:
-        payload = feasible(s_hi)
-        if payload is not None:
-            return s_hi, payload
-        s = s_hi
-        for _ in range(60):                       # find a feasible lower end by halving
-            s *= 0.5
-            lo_payload = feasible(s)
-            if lo_payload is not None:
-                lo = s
-                break
-        if lo is None:
-            return None, None
-        hi = min(s_hi, 2 * lo)
-    else:
-        hi = s_hi
-    while hi - lo > _REL_TOL * hi:
-        mid = 0.5 * (lo + hi)
-        p = feasible(mid)
-        if p is not None:
-            lo, lo_payload = mid, p
-        else:
-            hi = mid
-    return lo, lo_payload
-
-
-def _upper_scale(wh, pad):
-    """Scale above which the padded boxes cannot fit the unit square (area and side bounds)."""
-    w, h = wh[:, 0], wh[:, 1]
-    A, B, C = (w * h).sum(), pad * (w + h).sum(), len(w) * pad * pad - 1.0
-    if C >= 0:
-        return 0.0
-    s_area = (-B + np.sqrt(B * B - 4 * A * C)) / (2 * A) if A > 0 else np.inf
-    side = np.maximum(w, h).max()
-    s_side = (1.0 - pad) / side if side > 0 else np.inf
-    return float(min(s_area, s_side))
-
-
-def _pack_boxes(wh, pad, packers):
-    """Largest common scale at which boxes ``s*wh + pad`` pack into the unit square, and where.
-
-    ``packers`` are tried in turn: the first is bisected fully, each later one only has to beat the
-    best scale so far (one trial packing, then a bisection upwards if it does).
-    """
-    s_hi = _upper_scale(wh, pad)
-    if not np.isfinite(s_hi):
-        s_hi = 1.0
-    if s_hi <= 0:
-        return None, None
-    best_s, best_p = None, None
-    for packer in packers:
-        def feasible(s, packer=packer):
-            return packer(s * wh + pad)
-        if best_s is None:
-            best_s, best_p = bisect_scale(feasible, s_hi)
-            continue
-        s_try = best_s * (1 + _REL_TOL)
-        if s_try > s_hi:
-            break
-        p = feasible(s_try)
-        if p is not None:
-            best_s, best_p = bisect_scale(feasible, s_hi, lo=s_try, lo_payload=p)
-    return best_s, best_p
-
-
-def _own_packers(wh, allow_turn=True, rules=_RULES):
-    """One packer per (placement rule, order) pair."""
-    return [lambda sizes, o=o, r=r: _maxrects(sizes, o, r, allow_turn) for r in rules for o in _orders(wh)]
-
-
 # the rules the box packer runs when it only competes with shapes ("auto"): on the 14 multi-chart sets
 # of bench/pack.py with 2-64 charts they reach the density of all five rules within 1 % at 30-75 % of
 # the time (docs/decisions/pack.md)
@@ -342,9 +261,6 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
         rotation[i], offset[i] = theta, off
         out.append(q + off)
     return s, rotation, offset, out, None
-
-
-# ---------------------------------------------------------------------------- distance (checking)
 
 
 # ------------------------------------------------------------------------------------------- API
@@ -394,7 +310,7 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
 
     t0 = time.perf_counter()
     uvs, faces = _check_inputs(chart_uvs, chart_faces, method)
-    density = _check_density(texel_density)
+    density = check_texel_density(texel_density)
     W, H = _check_size(texture_size_px, density)
     g = _check_gutter(gutter_px, mip_levels, W, H)
     if not isinstance(rotate, (bool, np.bool_)):
@@ -429,8 +345,17 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
                       texel_density=float(density))
 
 
+# "auto" on a square atlas at a free scale picks by how full the charts' minimum-area boxes are (chart
+# area / box area, summed): boxes leave only their empty corners to shapes. On the 15 sets of 2-64 charts
+# of bench/pack.py boxes won every set filled >= 0.84 (by 0.8-26 points) and lost every set filled < 0.74
+# (by 5-14 points); in between both run (docs/decisions/pack.md, release 2c).
+_BOXES_ONLY_FILL = 0.8
+_SHAPES_ONLY_FILL = 0.7
+
+
 def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
-    """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the denser wins).
+    """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the
+    denser wins), unless the boxes' fill decides alone (_BOXES_ONLY_FILL, _SHAPES_ONLY_FILL).
 
     One chart: its box in the square is what shapes reach too (they try the same angles), so the shape
     search is skipped; the shape search gives up once it cannot beat the boxes.
@@ -438,15 +363,29 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
     boxes = None
     rects = np.array([min_area_rect(uv) for uv in uvs]) if rotate else None
     if try_boxes and W == H and density is None and len(uvs) <= 64:
-        boxes = place_boxes(uvs, faces, W, g, rects=rects, rules=_AUTO_RULES) if rotate else \
-            _place_unrotated(uvs, faces, W, g)
-    shapes = None if boxes is not None and len(uvs) == 1 else _place_shapes(
-        uvs, faces, W, H, g, density, rotate, K, aspect, rects, guess=None if boxes is None else boxes[0] * W)
+        fill = _box_fill(uvs, faces, rects)
+        if len(uvs) == 1 or fill >= _SHAPES_ONLY_FILL:
+            boxes = place_boxes(uvs, faces, W, g, rects=rects, rules=_AUTO_RULES) if rotate else \
+                _place_unrotated(uvs, faces, W, g)
+        if boxes is not None and (len(uvs) == 1 or fill >= _BOXES_ONLY_FILL):
+            return (*boxes, W, H, boxes[0] * W, "maxrects")
+    shapes = _place_shapes(uvs, faces, W, H, g, density, rotate, K, aspect, rects,
+                           guess=None if boxes is None else boxes[0] * W)
     if boxes is not None and (shapes is None or boxes[0] > shapes[0] * (1 + 1e-12)):
-        s, rotation, offset, out, gap = boxes
-        return s, rotation, offset, out, gap, W, H, boxes[0] * W, "maxrects"
+        return (*boxes, W, H, boxes[0] * W, "maxrects")
     s, rotation, offset, out, gap, W, H, density = shapes
     return s, rotation, offset, out, gap, W, H, density, "shape"
+
+
+def _box_fill(uvs, faces, rects):
+    """Total chart area over the total area of the charts' boxes (minimum-area ones when ``rects``,
+    else axis-aligned)."""
+    area = sum(float(np.abs(signed_areas(uv, F)).sum()) for uv, F in zip(uvs, faces))
+    if rects is not None:
+        box = float((rects[:, 1] * rects[:, 2]).sum())
+    else:
+        box = float(sum(np.prod(np.ptp(uv, axis=0)) for uv in uvs))
+    return area / box if box > 0 else 1.0
 
 
 def _place_free_scale(uvs, faces, N, g, rotate, used):
@@ -466,7 +405,7 @@ def _shape_angles(n, rects, rotate, few):
     also at 45 degrees from it, where free angles pay most (bench/pack.py: +6.7 points on halftunnel, +4
     on sphere_cap), unless they are longer than 3:1 (a diagonal long chart rasterises a mostly empty
     square); with ``few`` charts (<= 4) also 22.5 and 67.5 degrees from it (bumpy +1.0 point, paid by
-    one width round instead of two)."""
+    one width round instead of two; every search now runs one)."""
     if not rotate:
         return [np.zeros(1) for _ in range(n)]
     big = set(np.lexsort((np.arange(n), -rects[:, 1] * rects[:, 2]))[:6].tolist())
@@ -477,16 +416,32 @@ def _shape_angles(n, rects, rotate, few):
     return angles
 
 
-def _fit_free_scale(packer, W, H, g, guess, few):
+# the free-scale shape search (docs/decisions/pack.md, release 2c): from 64 charts fit_scale (full
+# resolution trials); below, one raster in strips of several widths (fit_width). The raster is 512 texels
+# a side on meshes of >= 8192 faces (their commands take seconds; fandisk, camelhead, beetle), else 256
+# (cow 512 -> 256: 66.8 -> 62.8 %, 3x faster; the rest of a small mesh's command is short). Other chart
+# orders are tried on big meshes and for 5-8 charts (each order costs a placement of every chart; up to 4
+# charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the time). One
+# round of widths: a second one under the best density (another raster) took 30 % of the time for
+# -0.2..+0.6 points (cow +0.1, camelhead +0.6, fandisk -0.2).
+_FIT_SCALE_FROM = 64
+_BIG_MESH_FACES = 8192
+_ORDERS_UP_TO = 8
+
+
+def _fit_free_scale(packer, W, H, g, guess):
     """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
-    if len(packer.uvs) >= 32:   # fit_width below: 2-5x faster from 12 charts on, -1.6..+1.5 points
+    n = len(packer.uvs)
+    if n >= _FIT_SCALE_FROM:
         p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
-    else:       # few charts: one raster, strips of several widths, each layout scaled to the atlas
+    else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
+        big = sum(len(F) for F in packer.faces) >= _BIG_MESH_FACES
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess, rounds=1 if few else 2)
+                      floor=guess, rounds=1, coarse_px=512 if big else 256,
+                      order_packs=2 if big or 4 < n <= _ORDERS_UP_TO else 0)
     if p is None and guess is not None:
         return None
     if p is None:
@@ -523,7 +478,7 @@ def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rect
     few = rotate and density is None and len(uvs) <= 4
     packer = ShapePacker(uvs, faces, _shape_angles(len(uvs), rects, rotate, few), quarter_turns=bool(rotate))
     if density is None:
-        p = _fit_free_scale(packer, W, H, g, guess, few)
+        p = _fit_free_scale(packer, W, H, g, guess)
         if p is None:
             return None
     elif W is None:

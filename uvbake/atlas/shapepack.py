@@ -241,21 +241,29 @@ class _Atlas:
         # rows where every footprint row finds a long enough free run somewhere
         Lrow = np.zeros(h, np.int32)
         np.maximum.at(Lrow, dy, L.astype(np.int32))
-        win = np.lib.stride_tricks.sliding_window_view(self.rowmax[:ny + h - 1], h)
+        # a (ny, h) window view of the (contiguous) row maxima, made directly: sliding_window_view and
+        # as_strided take 15-30 us a call, more than the test (the rows exist: the strip grew to top + h + 1)
+        rm = self.rowmax[:ny + h - 1]
+        if len(rm) != ny + h - 1 or not rm.flags.c_contiguous:
+            raise RuntimeError("shape packer: row table shorter than the search window")
+        win = np.ndarray((ny, h), rm.dtype, rm, 0, (rm.itemsize, rm.itemsize))
         ys = np.flatnonzero((win >= Lrow[None, :]).all(axis=1))
         k0 = 0
         while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
             yc = ys[k0:k0 + _CHUNK]
             k0 += _CHUNK
-            # dense phase: runs tested on every position of the chunk (row gather + column slice)
-            ok = self.run[yc + dy[0], a[0]:a[0] + nx] >= L[0]
+            # dense phase: runs tested on every position of the chunk (consecutive candidate rows, the
+            # usual case, are a view of the run table; others a row gather), then a column slice
+            y0, n = int(yc[0]), len(yc)
+            rows = (lambda d: slice(y0 + d, y0 + d + n)) if int(yc[-1]) - y0 == n - 1 else (lambda d: yc + d)
+            ok = self.run[rows(dy[0]), a[0]:a[0] + nx] >= L[0]
             k = 1
             while k < len(dy):
-                ok &= self.run[yc + dy[k], a[k]:a[k] + nx] >= L[k]
+                ok &= self.run[rows(dy[k]), a[k]:a[k] + nx] >= L[k]
                 k += 1
                 if k % 4 == 0 and (k >= 16 or np.count_nonzero(ok) < nx):
                     break                     # survivors go to the sparse phase, which stops at the first fit
-            yi, xi = np.nonzero(ok)           # row-major: bottom-left first
+            yi, xi = np.divmod(np.flatnonzero(ok), nx)       # row-major: bottom-left first
             for b0 in range(0, len(yi), _BATCH):      # sparse phase: the other runs on the survivors
                 cy, cx = yc[yi[b0:b0 + _BATCH]], xi[b0:b0 + _BATCH]
                 j, step = k, 4
@@ -323,7 +331,23 @@ class ShapePacker:
             self.flipped.append(np.flatnonzero(sa * major <= 0))
             self.area[i] = np.abs(sa).sum()
         self.order = np.lexsort((np.arange(len(uvs)), -self.area))      # biggest first, ties by index
+        self.orders = [self.order]
+        for key in self._order_keys():                                   # other orders, distinct ones only
+            o = np.lexsort((np.arange(len(uvs)), -key))
+            if not any(np.array_equal(o, q) for q in self.orders):
+                self.orders.append(o)
         self._density, self._cands, self._dilated = None, {}, {}          # footprints at the last density
+
+    def _order_keys(self):
+        """Keys of the other chart orders the searches may try (biggest first by each): boundary length,
+        then the short side of the chart's box (the extent across its principal direction)."""
+        perim, short = np.zeros(len(self.uvs)), np.zeros(len(self.uvs))
+        for i, (uv, b) in enumerate(zip(self.uvs, self.bedges)):       # one iteration per chart
+            perim[i] = np.linalg.norm(uv[b[:, 0]] - uv[b[:, 1]], axis=1).sum()
+            c = uv - uv.mean(axis=0)
+            ev = np.linalg.eigvalsh(c.T @ c / max(len(uv), 1))
+            short[i] = np.sqrt(max(ev[0], 0.0))
+        return [perim, short]
 
     def _cached(self, i, density):
         """Chart i's candidates at ``density`` with their runs; kept while the density stays the same
@@ -366,7 +390,7 @@ class ShapePacker:
                 t = np.array([h - t[1], t[0]])
 
     def pack(self, density: float, width: int, height: int | None, gutter_px: int, *,
-             give_up_above: int | None = None) -> ShapePacking | None:
+             give_up_above: int | None = None, order: np.ndarray | None = None) -> ShapePacking | None:
         """Bottom-left fill of a ``width``-texel strip (``height`` rows at most, None: unbounded).
 
         Returns a ShapePacking, or None when some chart does not fit. With ``give_up_above`` the packing
@@ -380,9 +404,13 @@ class ShapePacker:
         n = len(self.uvs)
         rotation, offset = np.zeros(n), np.zeros((n, 2))
         placed = 0.0
-        for i in self.order:                      # one iteration per chart; the search inside is numpy
+        for i in self.order if order is None else order:    # one iteration per chart; the search is numpy
             best = None
-            for r, (fp, theta, t, runs) in enumerate(self._cached(i, density)):
+            cands = self._cached(i, density)
+            # the flattest rotations first: their top edges bound the search of the others (the lowest
+            # top edge wins, ties by y, x, rotation index, so the order tried does not change the result)
+            for r in sorted(range(len(cands)), key=lambda r: (cands[r][0].shape[0], r)):
+                fp, theta, t, runs = cands[r]
                 pos = atlas.find(runs, fp.shape[0], fp.shape[1], top_bound=None if best is None else best[0][0])
                 if pos is None:
                     continue

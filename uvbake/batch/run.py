@@ -26,7 +26,7 @@ from uvbake.flatten.options import DEFAULTS
 UNWRAP_DEFAULTS = dict(alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS.backend, tol=DEFAULTS.tol,
                        max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed, texture_size_px=1024, gutter_px=4,
                        bake="checker", auto_cut=True, repair=True, guarantee=True,
-                       continuation=DEFAULTS.continuation, max_splits=256)
+                       continuation=DEFAULTS.continuation, max_splits=256, texel_density=None)
 #: what else a batch writes per asset
 OUTPUT_DEFAULTS = dict(format="obj", preview_size_px=96, atlas_image="auto", atlas_size_px=256)
 DEFAULT_TIMEOUT_S = 600.0
@@ -46,6 +46,7 @@ def normalise_options(**options: Any) -> dict[str, Any]:
     Raises InputError naming the option (by its Python name) for anything not usable.
     """
     from uvbake import __version__
+    from uvbake.atlas.pack import check_texel_density
     from uvbake.atlas.pipeline import BAKE_MODES, check_texture
     from uvbake.batch.child import ATLAS_IMAGES
     from uvbake.flatten.options import SolveOptions
@@ -55,12 +56,16 @@ def normalise_options(**options: Any) -> dict[str, Any]:
         raise InputError(f"unknown option(s) {', '.join(unknown)}; batch takes "
                          f"{', '.join(sorted(UNWRAP_DEFAULTS) + sorted(OUTPUT_DEFAULTS))}")
     u = {k: options.get(k, v) for k, v in UNWRAP_DEFAULTS.items()}
+    if u["texel_density"] is not None and "texture_size_px" not in options:
+        u["texture_size_px"] = None               # one density across the batch: each atlas grows to fit
     o = {k: options.get(k, v) for k, v in OUTPUT_DEFAULTS.items()}
     u["alpha"] = SolveOptions(alpha=u["alpha"], init=u["init"], backend=u["backend"], tol=u["tol"],
                               max_iter=u["max_iter"]).alpha
     u["tol"], u["max_iter"], u["seed"] = float(u["tol"]), int(u["max_iter"]), int(u["seed"])
-    check_texture(u["texture_size_px"], u["gutter_px"])
-    u["texture_size_px"], u["gutter_px"] = int(u["texture_size_px"]), int(u["gutter_px"])
+    u["texel_density"] = check_texel_density(u["texel_density"])
+    check_texture(u["texture_size_px"], u["gutter_px"], u["texel_density"])
+    u["gutter_px"] = int(u["gutter_px"])
+    u["texture_size_px"] = None if u["texture_size_px"] is None else int(u["texture_size_px"])
     if u["bake"] not in BAKE_MODES:
         raise InputError(f"bake={u['bake']!r} is not one of None, 'checker', 'vertex-colors'")
     for k in ("auto_cut", "repair", "guarantee", "continuation"):
@@ -105,7 +110,9 @@ def run(inputs: Any, out_dir: str | os.PathLike[str], client: Any = None, *, sch
     **options
         ``alpha``, ``init``, ``backend``, ``tol``, ``max_iter``, ``seed``, ``texture_size_px``,
         ``gutter_px``, ``bake`` (None, "checker" (default), "vertex-colors"), ``auto_cut``, ``repair``,
-        ``guarantee``, ``continuation``, ``max_splits`` as in :func:`uvbake.unwrap`; ``format``
+        ``guarantee``, ``continuation``, ``max_splits``, ``texel_density`` as in :func:`uvbake.unwrap`
+        (``texel_density``: one texels-per-unit for every asset; each atlas then grows to fit unless
+        ``texture_size_px`` is given too); ``format``
         ("obj" or "glb"), ``preview_size_px`` (0: none), ``atlas_image`` ("auto", "texture", "charts",
         None) and ``atlas_size_px``.
 

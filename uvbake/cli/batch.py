@@ -49,8 +49,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--no-auto-cut", action="store_true", help="refuse closed charts and charts with handles")
     g.add_argument("--no-repair", action="store_true", help="refuse non-manifold input")
     g.add_argument("--paper", action="store_true", help="the paper's formulation: no splitting, no continuation")
-    g.add_argument("--texture-size", type=int, default=UNWRAP_DEFAULTS["texture_size_px"], metavar="PX",
-                   help=f"texture side in texels (default {UNWRAP_DEFAULTS['texture_size_px']})")
+    g.add_argument("--texture-size", type=int, default=None, metavar="PX",
+                   help=f"texture side in texels (default {UNWRAP_DEFAULTS['texture_size_px']}; with "
+                        f"--texel-density each texture grows to fit)")
+    g.add_argument("--texel-density", type=float, default=None, metavar="PX_PER_UNIT",
+                   help="fixed texels per world unit, the same for every asset of the batch (each texture "
+                        "grows to fit, or with --texture-size an asset that cannot fit fails)")
     g.add_argument("--gutter", type=int, default=UNWRAP_DEFAULTS["gutter_px"], metavar="PX",
                    help=f"gap between charts in texels (default {UNWRAP_DEFAULTS['gutter_px']})")
     g.add_argument("--bake", default="checker", choices=["checker", "vertex-colors", "none"],
@@ -79,6 +83,15 @@ def main(argv: list[str] | None = None) -> int:
     return run_command("uvbake batch", lambda: run(p.parse_args(sys.argv[1:] if argv is None else argv)))
 
 
+def _texture_options(args: argparse.Namespace) -> dict:
+    """--texture-size and --texel-density as batch options (a texture size left out: the default, or a
+    growing atlas with --texel-density)."""
+    out = {} if args.texture_size is None else {"texture_size_px": args.texture_size}
+    if args.texel_density is not None:
+        out["texel_density"] = args.texel_density
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     """``uvbake batch``: unwrap every input on Dask, write the summary; 1 when some asset failed."""
     if args.scheduler and args.workers is not None:
@@ -88,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
                 timeout_per_asset_s=args.timeout_per_asset, retries=args.retries, progress=not args.quiet,
                 html=not args.no_html, alpha=args.alpha, init=args.init, backend=args.backend, tol=args.tol,
                 max_iter=args.max_iter, seed=args.seed, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
-                guarantee=not args.paper, continuation=not args.paper, texture_size_px=args.texture_size,
+                guarantee=not args.paper, continuation=not args.paper, **_texture_options(args),
                 gutter_px=args.gutter, bake=None if args.bake == "none" else args.bake, format=args.format,
                 preview_size_px=args.preview_size,
                 atlas_image=None if args.atlas_image == "none" else args.atlas_image)
