@@ -207,8 +207,8 @@ def _positions(haystack, needles):
 
 def overlapping_pairs(charts, uvs):
     """Overlapping triangle pairs inside each chart, as a list of local (p,2) arrays, from one exact
-    check (:func:`uvbake.validation.validate`) of all the charts laid side by side on shelves."""
-    from uvbake.validate import validate
+    check (the exact pass of :func:`uvbake.validate.validate`) of all the charts laid side by side on shelves."""
+    from uvbake.validate.core import overlap_pairs
 
     if not charts:
         return []
@@ -227,8 +227,7 @@ def overlapping_pairs(charts, uvs):
     F = np.concatenate([c.F + k for c, k in zip(charts, np.cumsum([0] + [len(c.V) for c in charts[:-1]]))])
     ids = np.repeat(np.arange(len(charts)), [len(c.F) for c in charts])
     first = np.cumsum([0] + [len(c.F) for c in charts[:-1]])
-    rep = validate(corner, F, chart_ids=ids, resolution_px=1024)
-    pairs = np.asarray(rep.overlap_pairs, dtype=np.int64).reshape(-1, 2)
+    pairs = overlap_pairs(corner, F, chart_ids=ids)
     owner = ids[pairs[:, 0]] if len(pairs) else np.zeros(0, np.int64)
     return [pairs[owner == i] - first[i] for i in range(len(charts))]
 
