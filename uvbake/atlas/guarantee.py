@@ -254,7 +254,8 @@ def solve_valid(charts, starts, options, *, max_stretch, workers=None, max_split
     """Solve every chart with the injective LM from its start, then check each chart once: what
     starves (or flipped because the start was not valid) is split once per bad region, overlapping
     sheets are split apart, and only the parts are solved again, from the parent's map. Rounds and
-    splits are bounded by counts (``max_rounds``, ``max_splits``), never by time.
+    splits are bounded by counts (``max_rounds``, ``max_splits``), never by time. Only the charts
+    that changed in a round are checked in the next.
 
     Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart."""
     note = note or (lambda stage, done, total: None)
@@ -265,35 +266,48 @@ def solve_valid(charts, starts, options, *, max_stretch, workers=None, max_split
     for _ in range(max_rounds):                       # rounds: each splits every bad chart once
         if not todo or len(splits) >= max_splits:
             break
-        overlaps = overlapping_pairs([charts[i] for i in todo], [results[i].uv for i in todo])
-        new = []
-        for i, pairs in zip(todo, overlaps):
-            c = charts[i]
-            if len(c.F) < 2 or len(splits) >= max_splits:
-                continue
-            bad = starved_or_flipped(c, results[i].uv, max_stretch)
-            if len(bad):
-                parts, pstarts, rec = split_bad(c, results[i].uv, bad)
-            elif len(pairs):
-                parts, pstarts, rec = separating_split(c, results[i].uv, pairs)
-            else:
-                continue
-            splits.append(rec)
-            new.append((i, parts, pstarts))
+        new = _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits)
         if not new:
             break
         flat = [p for _, parts, _ in new for p in parts]
         flat_starts = [s for _, _, st in new for s in st]
         solved = _solve_flip_free(flat, flat_starts, options, workers, lambda d, n, r: note("split", d, n))
-        replace, it = {}, iter(solved)
-        for i, parts, _ in new:
-            replace[i] = [(p, next(it)) for p in parts]
-        out_c, out_r, todo = [], [], []
-        for i, (c, r) in enumerate(zip(charts, results)):
-            for p, pr in replace.get(i, [(c, r)]):
-                if i in replace:
-                    todo.append(len(out_c))
-                out_c.append(p)
-                out_r.append(pr)
-        charts, results = out_c, out_r
+        charts, results, todo = _replace_split(charts, results, new, solved)
     return charts, results, splits
+
+
+def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits):
+    """Split each chart in ``todo`` that starves, flipped or overlaps itself, once (records appended
+    to ``splits``). Returns [(chart index, parts, their starts)]."""
+    overlaps = overlapping_pairs([charts[i] for i in todo], [results[i].uv for i in todo])
+    new = []
+    for i, pairs in zip(todo, overlaps):
+        c = charts[i]
+        if len(c.F) < 2 or len(splits) >= max_splits:
+            continue
+        bad = starved_or_flipped(c, results[i].uv, max_stretch)
+        if len(bad):
+            parts, pstarts, rec = split_bad(c, results[i].uv, bad)
+        elif len(pairs):
+            parts, pstarts, rec = separating_split(c, results[i].uv, pairs)
+        else:
+            continue
+        splits.append(rec)
+        new.append((i, parts, pstarts))
+    return new
+
+
+def _replace_split(charts, results, new, solved):
+    """Charts and results with each split chart replaced by its solved parts in place, and the
+    indices of those parts (the next round's charts to check)."""
+    replace, it = {}, iter(solved)
+    for i, parts, _ in new:
+        replace[i] = [(p, next(it)) for p in parts]
+    out_c, out_r, todo = [], [], []
+    for i, (c, r) in enumerate(zip(charts, results)):
+        for p, pr in replace.get(i, [(c, r)]):
+            if i in replace:
+                todo.append(len(out_c))
+            out_c.append(p)
+            out_r.append(pr)
+    return out_c, out_r, todo
