@@ -318,6 +318,7 @@ def _report(run, corner_uv, packed, verdict):
 
     opts, log, charts, results = run.opts, run.chart_log, run.charts, run.results
     texels = texel_summary(run.V, run.F, corner_uv)
+    per_chart = [chart_distortion(c.V, c.F, r.uv) for c, r in zip(charts, results)]   # once per chart
     shown = ("texture_size_px", "gutter_px", "bake", "auto_cut", "repair", "weld", "guarantee", "max_stretch",
              "max_charts", "texel_density", "mip_levels")
     report = {
@@ -335,9 +336,10 @@ def _report(run, corner_uv, packed, verdict):
         "seam_length_added": float(sum(c["seam_length"] for c in log["cuts"])
                                    + sum(c.get("seam_length", 0.0) for c in log["budget_cuts"])
                                    + sum(s["seam_length"] for s in run.splits)),
-        "distortion": {"final": _distortion_summary(charts, results)},
-        "charts": [dict(name=c.name, label=c.label, triangles=int(len(c.F)),
-                        **_distortion(c, r), **r.to_dict()) for c, r in zip(charts, results)],
+        "distortion": {"final": distortion_summary(per_chart, flipped=sum(r.n_flipped for r in results),
+                                                   energy=sum(r.energy for r in results))},
+        "charts": [dict(name=c.name, label=c.label, triangles=int(len(c.F)), **d, **r.to_dict())
+                   for c, r, d in zip(charts, results, per_chart)],
         "atlas": dict(texture_size_px=opts["texture_size_px"], gutter_px=opts["gutter_px"], **_pack_summary(packed),
                       validation=verdict.to_dict()),
         **texels,
@@ -424,15 +426,6 @@ def check_texture(texture_size_px, gutter_px, texel_density=None):
             or not 0 <= gutter_px <= limit:
         raise InputError(f"gutter_px={gutter_px!r} must be a whole number of texels from 0 to "
                          f"{limit} (an eighth of the texture)")
-
-
-def _distortion(chart, result):
-    return chart_distortion(chart.V, chart.F, result.uv)
-
-
-def _distortion_summary(charts, results):
-    return distortion_summary([_distortion(c, r) for c, r in zip(charts, results)],
-                              flipped=sum(r.n_flipped for r in results), energy=sum(r.energy for r in results))
 
 
 def _pack_summary(packed):
