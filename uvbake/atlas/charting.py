@@ -492,7 +492,7 @@ def _merge_back(st):
         if candidate is None:
             return
         i, j = candidate
-        tried.add((serial[i], serial[j]))
+        tried.add(_pair(serial[i], serial[j]))         # a pair is tried once, from either side
         merged = join_charts(st.done[i], st.done[j])
         if merged is None:
             continue
@@ -523,9 +523,13 @@ def _next_merge(border, area, serial, tried):
         mine = border[border[:, 0] == i]
         mine = mine[np.lexsort((mine[:, 1], -mine[:, 2]))]
         for j in mine[:MERGE_TRIES, 1].astype(np.int64):
-            if (serial[i], serial[j]) not in tried:
+            if _pair(serial[i], serial[j]) not in tried:
                 return int(i), int(j)
     return None
+
+
+def _pair(a, b):
+    return (a, b) if a < b else (b, a)
 
 
 def _area(chart):
