@@ -171,7 +171,8 @@ def test_progress_moves_per_chart_and_per_iteration_and_can_stop_the_run(workers
 
 
 def test_two_halves_of_a_disk_join_back_into_the_disk_and_a_closed_join_is_refused():
-    from uvbake.atlas.charting import join_charts, sub_charts
+    from uvbake.atlas.charting import sub_charts
+    from uvbake.atlas.merge import join_charts
     from uvbake.mesh.charts import split_charts
 
     from meshgen import torus
@@ -196,8 +197,9 @@ def test_two_halves_of_a_disk_join_back_into_the_disk_and_a_closed_join_is_refus
 
 
 def test_merging_back_keeps_every_chart_within_the_budget_and_overlap_free():
-    from uvbake.atlas.charting import _Charting, _merge_back, conformal_factor, sub_charts
+    from uvbake.atlas.charting import _Charting, conformal_factor, sub_charts
     from uvbake.atlas.guarantee import overlapping_pairs
+    from uvbake.atlas.merge import merge_back
     from uvbake.mesh.charts import split_charts
 
     V, F = plane(12, 10, jitter=0.2)
@@ -208,7 +210,7 @@ def test_merging_back_keeps_every_chart_within_the_budget_and_overlap_free():
     st = _Charting(float(np.log(4.0)), None, 100, [])
     st.done = list(parts)
     st.starts = [conformal_factor(p.V, p.F)[0] for p in parts]
-    _merge_back(st)
+    merge_back(st)
     assert len(st.done) == 1                         # a flat sheet needs no cut at all
     c, uv = st.done[0], st.starts[0]
     assert sorted(c.face_index) == list(range(len(F)))

@@ -22,10 +22,12 @@ a piece meeting at one vertex get their own copies of it and every piece is mani
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from uvbake.errors import ChartError, InputError
@@ -44,7 +46,7 @@ OVERLAP_ROUNDS = 4
 MAX_SOLVES_PER_CHART = 400
 
 
-def check_budget(max_stretch, max_charts):
+def check_budget(max_stretch: float, max_charts: int | None) -> tuple[float, int | None]:
     try:
         ms = float(max_stretch)
     except (TypeError, ValueError):
@@ -57,7 +59,8 @@ def check_budget(max_stretch, max_charts):
     return ms, (None if max_charts is None else int(max_charts))
 
 
-def disk_charts(V, F, labels, *, auto_cut=True):
+def disk_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None, *,
+                auto_cut: bool = True) -> tuple[list[Chart], list[dict]]:
     """Charts from labels and edge-connected pieces; closed pieces and handles cut into disks.
 
     Returns (charts, cuts): cuts lists one dict per piece that had to be cut."""
@@ -83,7 +86,7 @@ def disk_charts(V, F, labels, *, auto_cut=True):
     return out, cuts
 
 
-def sub_charts(chart, sub_labels):
+def sub_charts(chart: Chart, sub_labels: ArrayLike) -> list[Chart]:
     """Split ``chart`` by per-face labels into edge-connected, manifold charts of the whole mesh.
 
     Each part's vertices are its corner fans, so parts touching themselves at a vertex get one copy
@@ -115,7 +118,7 @@ def sub_charts(chart, sub_labels):
     return parts
 
 
-def slit(chart, tips):
+def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     """``chart`` cut open along the shortest edge paths from the vertices ``tips`` to its boundary.
 
     The path's vertices (but the tip) get one copy per side, so the chart stays one disk with holes:
@@ -162,7 +165,7 @@ def slit(chart, tips):
                  chart.label, chart.name), float(length[cut].sum())
 
 
-def lscm(V, F, *, frames=None):
+def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Least squares conformal map (Levy et al. 2002), assembled and solved in one shot.
 
     The same map as :func:`uvbake.flatten.starts.lscm` (area-weighted conformal energy, the two farthest
@@ -261,7 +264,8 @@ def _tips(chart, logf, area, bound):
     return cand[np.argsort(xv[cand], kind="stable")][:MAX_TIPS]
 
 
-def conformal_factor(V, F, *, frames=None):
+def conformal_factor(V: np.ndarray, F: np.ndarray, *,
+                     frames: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """LSCM map of a chart and each triangle's log area factor relative to the chart's mean.
 
     Returns (uv (n,2), logf (m,)): logf = log(UV area / 3D area) - log(total UV / total 3D), -inf where
@@ -401,8 +405,9 @@ class _Charting:
         return self.max_charts is not None and len(self.done) + len(self.queue) + 1 >= self.max_charts
 
 
-def make_charts(V, F, labels=None, *, max_stretch=DEFAULT_MAX_STRETCH, max_charts=None, auto_cut=True,
-                progress=None):
+def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
+                max_stretch: float = DEFAULT_MAX_STRETCH, max_charts: int | None = None, auto_cut: bool = True,
+                progress: Callable[[str, int, int], None] | None = None) -> tuple[list[Chart], list, dict]:
     """Charts of (V, F) that flatten within the distortion budget, with their conformal start maps.
 
     Returns
@@ -425,7 +430,9 @@ def make_charts(V, F, labels=None, *, max_stretch=DEFAULT_MAX_STRETCH, max_chart
         if not _separate_overlaps(st, checked):
             break
         checked = len(st.done)
-    _merge_back(st)
+    from uvbake.atlas.merge import merge_back
+
+    merge_back(st)
     for i, c in enumerate(st.done):
         c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
     return st.done, st.starts, dict(cuts=cuts, budget_cuts=st.budget_cuts, over_budget=st.over,
@@ -462,149 +469,6 @@ def _decide(st, chart, previous):
     st.budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=len(parts),
                                least_factor=float(np.exp(least))))
     st.queue.extend((p, None) for p in parts)
-
-
-#: Merge attempts per chart (each one conformal solve of the merged chart and one overlap check).
-MERGE_TRIES = 2
-#: A merged chart's least area factor must be at least max_stretch ** -MERGE_SHARE_OF_BUDGET.
-MERGE_SHARE_OF_BUDGET = 0.5
-
-
-def _merge_back(st):
-    """Merge charts back into a neighbour when the merged chart still flattens within the budget
-    with no overlap: budget cuts and overlap separations are decided greedily, one chart at a time,
-    and some of their parts turn out not to need their own chart once their neighbour is cut too
-    (halftunnel: 13 charts, 4 of them from separating small overlapping sheets). Smallest charts
-    first, each tried against its MERGE_TRIES neighbours of the same label with the longest shared
-    border; a merged chart is tried again later as a whole. Counted work: at most MERGE_TRIES
-    attempts per chart, never time."""
-    from uvbake.atlas.guarantee import overlapping_pairs
-
-    from uvbake.atlas.guarantee import area_factors
-
-    serial = list(range(len(st.done)))                 # identity of each chart (merged ones get new numbers)
-    area = [_area(c) for c in st.done]
-    least = [float(area_factors(c, uv).min()) for c, uv in zip(st.done, st.starts)]
-    tried = set()
-    border = chart_borders(st.done)
-    while True:
-        candidate = _next_merge(border, area, serial, tried)
-        if candidate is None:
-            return
-        i, j = candidate
-        tried.add(_pair(serial[i], serial[j]))         # a pair is tried once, from either side
-        merged = join_charts(st.done[i], st.done[j])
-        if merged is None:
-            continue
-        uv, logf = conformal_factor(merged.V, merged.F)
-        st.solves += 1
-        # within half the budget (in log terms), or no worse than the worse of the two: the LM moves
-        # factors after the merge (camelhead at alpha 0: least share 0.19 against 0.31 with the whole budget)
-        floor = min(-MERGE_SHARE_OF_BUDGET * st.bound, np.log(min(least[i], least[j])))
-        if not (np.all(np.isfinite(logf)) and logf.min() >= max(-st.bound, floor)):
-            continue
-        if len(overlapping_pairs([merged], [uv])[0]):
-            continue
-        keep, drop = min(i, j), max(i, j)
-        st.budget_cuts.append(dict(merged=[st.done[i].name, st.done[j].name], triangles=int(len(merged.F)),
-                                   least_factor=float(np.exp(logf.min()))))
-        st.done[keep], st.starts[keep], area[keep] = merged, uv, area[i] + area[j]
-        least[keep], serial[keep] = float(np.exp(logf.min())), len(serial) + len(tried)
-        del st.done[drop], st.starts[drop], area[drop], serial[drop], least[drop]
-        border = chart_borders(st.done)
-
-
-def _next_merge(border, area, serial, tried):
-    """The next (small chart, neighbour) pair to try, or None: charts by area, smallest first;
-    neighbours of the same label by shared border length, longest first, at most MERGE_TRIES each."""
-    if not len(border):
-        return None
-    for i in np.argsort(area, kind="stable"):
-        mine = border[border[:, 0] == i]
-        mine = mine[np.lexsort((mine[:, 1], -mine[:, 2]))]
-        for j in mine[:MERGE_TRIES, 1].astype(np.int64):
-            if _pair(serial[i], serial[j]) not in tried:
-                return int(i), int(j)
-    return None
-
-
-def _pair(a, b):
-    return (a, b) if a < b else (b, a)
-
-
-def _area(chart):
-    X = chart.V[chart.F]
-    return 0.5 * float(np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1).sum())
-
-
-def _boundary_global(charts):
-    """Every chart's boundary half-edges: (chart, local a, local b, mesh a, mesh b) rows, and their lengths."""
-    from uvbake.mesh.topology import boundary_edges
-
-    rows, length = [], []
-    for k, c in enumerate(charts):                     # one iteration per chart
-        b = boundary_edges(c.F, len(c.V))
-        rows.append(np.column_stack([np.full(len(b), k), b, c.vertex_map[b]]))
-        length.append(np.linalg.norm(c.V[b[:, 0]] - c.V[b[:, 1]], axis=1))
-    if not rows:
-        return np.zeros((0, 5), np.int64), np.zeros(0)
-    return np.concatenate(rows), np.concatenate(length)
-
-
-def chart_borders(charts):
-    """(p,3) rows (chart i, chart j, shared border length) for every ordered pair of charts of the
-    same label that share mesh edges (i != j), sorted by (i, j)."""
-    h, length = _boundary_global(charts)
-    if not len(h):
-        return np.zeros((0, 3))
-    n = int(h[:, 3:].max()) + 1
-    key = h[:, 3] * n + h[:, 4]
-    twin = h[:, 4] * n + h[:, 3]
-    o = np.argsort(key, kind="stable")
-    at = np.clip(np.searchsorted(key[o], twin), 0, len(o) - 1)
-    hit = key[o][at] == twin
-    i, j = h[hit, 0], h[o[at[hit]], 0]
-    label = np.array([c.label for c in charts])
-    ok = (i != j) & (label[i] == label[j])
-    i, j, length = i[ok], j[ok], length[hit][ok]
-    k = len(charts)
-    up, inv = np.unique(i * k + j, return_inverse=True)
-    return np.column_stack([up // k, up % k, np.bincount(inv, weights=length)])
-
-
-def join_charts(a, b):
-    """One chart of ``a`` and ``b`` (same label) joined along the mesh edges they share, or None when
-    the result is not a disk with holes (it would close a loop into a handle, or meet at a bowtie)."""
-    from uvbake.mesh.topology import topology
-
-    h = _boundary_global([a, b])[0]
-    n = int(h[:, 3:].max()) + 1
-    ha, hb = h[h[:, 0] == 0], h[h[:, 0] == 1]
-    _, ia, ib = np.intersect1d(ha[:, 3] * n + ha[:, 4], hb[:, 4] * n + hb[:, 3], return_indices=True)
-    if not len(ia):
-        return None
-    na = len(a.V)
-    # a's edge (x, y) is b's (y, x): weld a's x with b's y and a's y with b's x
-    u = np.concatenate([ha[ia, 1], ha[ia, 2]])
-    v = np.concatenate([hb[ib, 2], hb[ib, 1]]) + na
-    g = sp.coo_matrix((np.ones(len(u)), (u, v)), shape=(na + len(b.V),) * 2)
-    nc, comp = connected_components(g, directed=False)
-    # a weld joining two vertices of one chart would pinch it (or collapse an edge): not a merge
-    if np.bincount(comp[:na], minlength=nc).max() > 1 or np.bincount(comp[na:], minlength=nc).max() > 1:
-        return None
-    _, first, new = np.unique(comp, return_index=True, return_inverse=True)
-    V = np.concatenate([a.V, b.V])[first]
-    vmap = np.concatenate([a.vertex_map, b.vertex_map])[first]
-    F = new[np.concatenate([a.F, b.F + na])]
-    # two disks with holes welded along whole edges, one vertex of each per weld: manifold, one fan
-    # per vertex, one piece; it is a disk with holes unless the weld closed it or made a handle
-    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    if len(np.unique(he[:, 0] * len(V) + he[:, 1])) < len(he):   # an edge used twice the same way
-        return None
-    topo = topology(F, len(V))
-    if topo.genus != 0 or topo.n_boundary_loops == 0:
-        return None
-    return Chart(V, F.astype(np.int64), vmap, np.concatenate([a.face_index, b.face_index]), a.label, a.name)
 
 
 def _separate_overlaps(st, checked):

@@ -14,10 +14,15 @@ formulation as is (charts from labels and disk cuts only, plain LM, nothing repa
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.analysis.metrics import chart_distortion, distortion_summary
 from uvbake.cancel import check_cancelled
@@ -64,7 +69,8 @@ class UnwrapResult:
     vertex_colors: np.ndarray | None
     report: dict = field(default_factory=dict)
 
-    def save(self, path, *, report_path=None, keep_vertex_colors=False, force=False):
+    def save(self, path: str | os.PathLike[str], *, report_path: str | os.PathLike[str] | None = None,
+             keep_vertex_colors: bool = False, force: bool = False) -> list[Path]:
         """Write the textured mesh (OBJ+MTL+PNG or GLB by extension) and optionally the JSON report.
 
         The texture alone carries the colour: viewers multiply vertex colours (glTF ``COLOR_0``, OBJ
@@ -74,7 +80,6 @@ class UnwrapResult:
         ``force`` replaces read-only files.
         """
         import json
-        from pathlib import Path
 
         from uvbake.io.atomic import OutputSet
         from uvbake.io.export import textured_files
@@ -97,11 +102,14 @@ def _blank(size):
     return np.full((size, size, 3), 255, np.uint8)
 
 
-def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS.backend, tol=DEFAULTS.tol,
-           max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed, face_labels=None, texture_size_px=1024, gutter_px=None,
-           bake=None, auto_cut=True, repair=True, weld=None, guarantee=True, max_stretch=None, max_charts=None,
-           max_splits=256, continuation=DEFAULTS.continuation, workers=None, progress=None, callback=None,
-           texel_density=None, mip_levels=None):
+def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.init, backend: str = DEFAULTS.backend,
+           tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter, seed: int = DEFAULTS.seed,
+           face_labels: ArrayLike | None = None, texture_size_px: int | None = 1024, gutter_px: int | None = None,
+           bake: str | None = None, auto_cut: bool = True, repair: bool = True, weld: bool | None = None,
+           guarantee: bool = True, max_stretch: float | None = None, max_charts: int | None = None,
+           max_splits: int = 256, continuation: bool = DEFAULTS.continuation, workers: int | None = None,
+           progress: Callable[[str, int, int], None] | None = None, callback: Callable | None = None,
+           texel_density: float | None = None, mip_levels: int | None = None) -> UnwrapResult:
     """Unwrap a mesh into a validated texture atlas.
 
     Parameters
@@ -412,7 +420,7 @@ def _pack_and_validate(V, F, charts, results, timings, pack_options):
     return packed, corner_uv, chart_ids, verdict
 
 
-def check_texture(texture_size_px, gutter_px, texel_density=None):
+def check_texture(texture_size_px: int | None, gutter_px: int | None, texel_density: float | None = None) -> None:
     if texture_size_px is None and texel_density is not None:
         limit = 16384 // 8
     elif isinstance(texture_size_px, bool) or not isinstance(texture_size_px, (int, np.integer)) \

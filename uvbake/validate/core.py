@@ -229,7 +229,7 @@ def validate(
     return report
 
 
-def overlap_pairs(uv, F, *, chart_ids=None):
+def overlap_pairs(uv: ArrayLike, F: ArrayLike | None, *, chart_ids: ArrayLike | None = None) -> np.ndarray:
     """The overlapping pairs :func:`validate` reports, (p,2) int64 sorted, without its raster pass.
 
     The raster pass only tells sub-pixel overlaps from others and draws the overlap image; the pairs
