@@ -41,14 +41,15 @@ def merge_back(st: _Charting) -> None:
     area = [_area(c) for c in st.done]
     least = [float(area_factors(c, uv).min()) for c, uv in zip(st.done, st.starts)]
     tried: set[tuple[int, int]] = set()
-    border = chart_borders(st.done)
+    cache: dict = {}                                   # boundary of each chart, computed once
+    border = chart_borders(st.done, cache)
     while True:
         candidate = _next_merge(border, area, serial, tried)
         if candidate is None:
             return
         i, j = candidate
         tried.add(_pair(serial[i], serial[j]))         # a pair is tried once, from either side
-        merged = join_charts(st.done[i], st.done[j])
+        merged = join_charts(st.done[i], st.done[j], cache)
         if merged is None:
             continue
         uv, logf = conformal_factor(merged.V, merged.F)
@@ -66,7 +67,7 @@ def merge_back(st: _Charting) -> None:
         st.done[keep], st.starts[keep], area[keep] = merged, uv, area[i] + area[j]
         least[keep], serial[keep] = float(np.exp(logf.min())), len(serial) + len(tried)
         del st.done[drop], st.starts[drop], area[drop], serial[drop], least[drop]
-        border = chart_borders(st.done)
+        border = chart_borders(st.done, cache)
 
 
 def _next_merge(border: np.ndarray, area: list, serial: list, tried: set) -> tuple[int, int] | None:
@@ -92,24 +93,30 @@ def _area(chart):
     return 0.5 * float(np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1).sum())
 
 
-def _boundary_global(charts):
-    """Every chart's boundary half-edges: (chart, local a, local b, mesh a, mesh b) rows, and their lengths."""
+def _boundary_global(charts, cache=None):
+    """Every chart's boundary half-edges: (chart, local a, local b, mesh a, mesh b) rows, and their
+    lengths. ``cache`` (a dict) keeps each chart's part between calls: keyed by id(chart), and the
+    entry holds the chart itself, so no other chart can take that id while the entry lives."""
     from uvbake.mesh.topology import boundary_edges
 
+    cache = {} if cache is None else cache
     rows, length = [], []
     for k, c in enumerate(charts):                     # one iteration per chart
-        b = boundary_edges(c.F, len(c.V))
-        rows.append(np.column_stack([np.full(len(b), k), b, c.vertex_map[b]]))
-        length.append(np.linalg.norm(c.V[b[:, 0]] - c.V[b[:, 1]], axis=1))
+        if id(c) not in cache:
+            b = boundary_edges(c.F, len(c.V))
+            cache[id(c)] = (c, np.column_stack([b, c.vertex_map[b]]), np.linalg.norm(c.V[b[:, 0]] - c.V[b[:, 1]], axis=1))
+        _, r, w = cache[id(c)]
+        rows.append(np.column_stack([np.full(len(r), k), r]))
+        length.append(w)
     if not rows:
         return np.zeros((0, 5), np.int64), np.zeros(0)
     return np.concatenate(rows), np.concatenate(length)
 
 
-def chart_borders(charts: list[Chart]) -> np.ndarray:
+def chart_borders(charts: list[Chart], cache: dict | None = None) -> np.ndarray:
     """(p,3) rows (chart i, chart j, shared border length) for every ordered pair of charts of the
-    same label that share mesh edges (i != j), sorted by (i, j)."""
-    h, length = _boundary_global(charts)
+    same label that share mesh edges (i != j), sorted by (i, j). ``cache``: see :func:`_boundary_global`."""
+    h, length = _boundary_global(charts, cache)
     if not len(h):
         return np.zeros((0, 3))
     n = int(h[:, 3:].max()) + 1
@@ -127,12 +134,12 @@ def chart_borders(charts: list[Chart]) -> np.ndarray:
     return np.column_stack([up // k, up % k, np.bincount(inv, weights=length)])
 
 
-def join_charts(a: Chart, b: Chart) -> Chart | None:
+def join_charts(a: Chart, b: Chart, cache: dict | None = None) -> Chart | None:
     """One chart of ``a`` and ``b`` (same label) joined along the mesh edges they share, or None when
     the result is not a disk with holes (it would close a loop into a handle, or meet at a bowtie)."""
     from uvbake.mesh.topology import topology
 
-    h = _boundary_global([a, b])[0]
+    h = _boundary_global([a, b], cache)[0]
     n = int(h[:, 3:].max()) + 1
     ha, hb = h[h[:, 0] == 0], h[h[:, 0] == 1]
     _, ia, ib = np.intersect1d(ha[:, 3] * n + ha[:, 4], hb[:, 4] * n + hb[:, 3], return_indices=True)
