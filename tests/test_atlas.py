@@ -168,3 +168,66 @@ def test_progress_moves_per_chart_and_per_iteration_and_can_stop_the_run(workers
     # charting reported every chart it decided before the first LM iteration, and nothing after the stop
     assert seen.count("charts") >= 2 and seen.index("charts") < seen.index("iterate")
     assert seen[-1] == "iterate" and "pack" not in seen
+
+
+def test_two_halves_of_a_disk_join_back_into_the_disk_and_a_closed_join_is_refused():
+    from uvbake.atlas.charting import sub_charts
+    from uvbake.atlas.merge import join_charts
+    from uvbake.mesh.charts import split_charts
+
+    from meshgen import torus
+
+    V, F = plane(10, 8, jitter=0.2)
+    whole = split_charts(V, F)[0]
+    left = (V[F].mean(axis=1)[:, 0] > 1.0).astype(np.int64)
+    a, b = sub_charts(whole, left)
+    j = join_charts(a, b)
+    topo = check_chart(j.V, j.F)                     # one disk again
+    assert topo.n_boundary_loops == 1 and len(j.V) == len(V) and len(j.F) == len(F)
+    assert sorted(j.face_index) == list(range(len(F)))
+    # every joined vertex is one mesh vertex, at its position
+    np.testing.assert_array_equal(j.V, V[j.vertex_map])
+    assert len(np.unique(j.vertex_map)) == len(j.V)
+    # a torus cut into two tubes (annuli): joining them back along both seams closes it: refused
+    Vt, Ft = torus(12, 8)
+    ring = (np.arange(len(Ft)) % (12 * 8)) // 8       # faces are (ring around the axis, tube step)
+    halves = sub_charts(split_charts(Vt, Ft, check=False)[0], (ring < 6).astype(np.int64))
+    assert len(halves) == 2 and all(check_chart(h.V, h.F).n_boundary_loops == 2 for h in halves)
+    assert join_charts(*halves) is None
+
+
+def test_merging_back_keeps_every_chart_within_the_budget_and_overlap_free():
+    from uvbake.atlas.charting import _Charting, conformal_factor, sub_charts
+    from uvbake.atlas.guarantee import overlapping_pairs
+    from uvbake.atlas.merge import merge_back
+    from uvbake.mesh.charts import split_charts
+
+    V, F = plane(12, 10, jitter=0.2)
+    whole = split_charts(V, F)[0]
+    quarter = ((V[F].mean(axis=1)[:, 0] > 1.0).astype(np.int64) * 2 + (V[F].mean(axis=1)[:, 1] > 0.5))
+    parts = sub_charts(whole, quarter)
+    assert len(parts) == 4
+    st = _Charting(float(np.log(4.0)), None, 100, [])
+    st.done = list(parts)
+    st.starts = [conformal_factor(p.V, p.F)[0] for p in parts]
+    merge_back(st)
+    assert len(st.done) == 1                         # a flat sheet needs no cut at all
+    c, uv = st.done[0], st.starts[0]
+    assert sorted(c.face_index) == list(range(len(F)))
+    f = area_factors(c, uv)
+    assert f.min() >= 0.25 and not len(overlapping_pairs([c], [uv])[0])
+    # a chart over budget is never the result of a merge: the finger's parts stay apart
+    Vf, Ff = finger()
+    charts, starts, log = make_charts(Vf, Ff, max_stretch=4.0)
+    for c, uv in zip(charts, starts):
+        assert area_factors(c, uv).min() >= 0.25 - 1e-12
+
+
+def test_halftunnel_has_no_more_charts_than_xatlas_and_is_valid():
+    from conftest import shared_mesh
+
+    path = shared_mesh("halftunnel.off")
+    res = uvbake.unwrap(str(path), alpha=0.5, texture_size_px=512)
+    assert res.report["valid"] and res.report["n_flipped_total"] == 0
+    assert res.report["charts_final"] <= 11           # xatlas 0.1.x: 11 charts
+    assert res.report["min_texel_share"] >= 1 / 16 and res.report["area_below_quarter"] <= 0.005

@@ -579,3 +579,17 @@ def test_zero_area_triangles_are_reported_as_degenerate_up_front():
     r = validate(uv, resolution_px=32)
     assert r.degenerate.tolist() == [1] and not r.valid
     assert "1 degenerate" in r.summary() and "0 flipped" in r.summary()
+
+
+def test_overlap_pairs_without_the_raster_are_validates_pairs():
+    # the exact pass alone gives the same list the full check reports, on tangled noise and on charts
+    from uvbake.validate.core import overlap_pairs
+
+    rng = np.random.default_rng(7)
+    V, F = grid(8)
+    for sigma in (0.0, 0.03, 0.08):
+        W = V + rng.normal(0.0, sigma, V.shape)
+        ids = (np.arange(len(F)) >= len(F) // 2).astype(np.int64)
+        for uv, faces, chart_ids in ((W, F, None), (W[F], None, None), (W[F], F, ids)):
+            full = validate(uv, faces, chart_ids=chart_ids, resolution_px=128).overlap_pairs
+            np.testing.assert_array_equal(overlap_pairs(uv, faces, chart_ids=chart_ids), full)

@@ -21,8 +21,13 @@ a piece meeting at one vertex get their own copies of it and every piece is mani
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from uvbake.errors import ChartError, InputError
@@ -41,7 +46,7 @@ OVERLAP_ROUNDS = 4
 MAX_SOLVES_PER_CHART = 400
 
 
-def check_budget(max_stretch, max_charts):
+def check_budget(max_stretch: float, max_charts: int | None) -> tuple[float, int | None]:
     try:
         ms = float(max_stretch)
     except (TypeError, ValueError):
@@ -54,7 +59,8 @@ def check_budget(max_stretch, max_charts):
     return ms, (None if max_charts is None else int(max_charts))
 
 
-def disk_charts(V, F, labels, *, auto_cut=True):
+def disk_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None, *,
+                auto_cut: bool = True) -> tuple[list[Chart], list[dict]]:
     """Charts from labels and edge-connected pieces; closed pieces and handles cut into disks.
 
     Returns (charts, cuts): cuts lists one dict per piece that had to be cut."""
@@ -72,16 +78,15 @@ def disk_charts(V, F, labels, *, auto_cut=True):
                 raise
             if not auto_cut:
                 raise ChartError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
-        sub = cut_to_disks(c.V, c.F)
+        # check_chart found it manifold; every label of cut_to_disks is a disk with holes (its contract)
+        sub = cut_to_disks(c.V, c.F, manifold=True)
         parts = sub_charts(c, sub)
-        for p in parts:
-            check_chart(p.V, p.F, name=p.name)
         cuts.append(dict(chart=c.name, parts=len(parts), seam_length=seam_length(c.V, c.F, sub)))
         out.extend(parts)
     return out, cuts
 
 
-def sub_charts(chart, sub_labels):
+def sub_charts(chart: Chart, sub_labels: ArrayLike) -> list[Chart]:
     """Split ``chart`` by per-face labels into edge-connected, manifold charts of the whole mesh.
 
     Each part's vertices are its corner fans, so parts touching themselves at a vertex get one copy
@@ -113,7 +118,7 @@ def sub_charts(chart, sub_labels):
     return parts
 
 
-def slit(chart, tips):
+def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     """``chart`` cut open along the shortest edge paths from the vertices ``tips`` to its boundary.
 
     The path's vertices (but the tip) get one copy per side, so the chart stays one disk with holes:
@@ -160,41 +165,61 @@ def slit(chart, tips):
                  chart.label, chart.name), float(length[cut].sum())
 
 
-def lscm(V, F):
+def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Least squares conformal map (Levy et al. 2002), assembled and solved in one shot.
 
     The same map as :func:`uvbake.flatten.starts.lscm` (area-weighted conformal energy, the two farthest
-    boundary vertices pinned at their 3D distance), but assembled straight into u/v blocks and
-    factored once with an AMD ordering: charting solves it for every candidate chart, where building
-    the solver's full energy object and nested-dissection analysis cost three quarters of the time."""
-    from uvbake.flatten.energy import triangle_frames
+    boundary vertices pinned at their 3D distance), but assembled straight into the free unknowns'
+    u/v blocks and factored once with an AMD ordering: charting solves it for every candidate chart,
+    where building the solver's full energy object and nested-dissection analysis cost three
+    quarters of the time. ``frames``: (Q, area) of :func:`uvbake.flatten.energy.triangle_frames`,
+    when the caller has them. Returns uv (n,2)."""
     from uvbake.flatten.starts import farthest_boundary_pair
+    from uvbake.mesh.topology import boundary_edges
 
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     n = len(V)
-    _, Q, area = triangle_frames(V, F)
+    Q, area = _frames(V, F) if frames is None else frames
     a, b = Q[:, :, 0], Q[:, :, 1]                        # (m,3): A = U Q, dA/du_k = (a_k, b_k)
-    w = 2.0 * area
+    w = (2.0 * area)[:, None, None]
     r = np.repeat(F, 3, axis=1).ravel()
     c = np.tile(F, (1, 3)).ravel()
     # D_angle = (a.u - b.v)^2 + (b.u + a.v)^2: Huu = Hvv = 2w (a a^T + b b^T), Huv = 2w (b a^T - a b^T)
-    duu = (w[:, None, None] * (a[:, :, None] * a[:, None, :] + b[:, :, None] * b[:, None, :])).ravel()
-    duv = (w[:, None, None] * (b[:, :, None] * a[:, None, :] - a[:, :, None] * b[:, None, :])).ravel()
-    rows = np.concatenate([r, r + n, r, c + n])
-    cols = np.concatenate([c, c + n, c + n, r])
-    data = np.concatenate([duu, duu, duv, duv])
-    H = sp.csc_matrix((data, (rows, cols)), shape=(2 * n, 2 * n))
+    duu = (w * (a[:, :, None] * a[:, None, :] + b[:, :, None] * b[:, None, :])).ravel()
+    duv = (w * (b[:, :, None] * a[:, None, :] - a[:, :, None] * b[:, None, :])).ravel()
+    # Huv is the Hessian of -4 x the signed UV area, a sum over boundary edges: its entries on interior
+    # edges cancel between the edge's two triangles (camelhead: |Huv| 1 on the boundary, at most 7e-13
+    # inside). Kept as stored zeros they double the u-v block's pattern and the factorisation's fill.
+    bnd = boundary_edges(F, n)
+    on = np.isin(np.minimum(r, c) * n + np.maximum(r, c), np.sort(bnd, axis=1) @ np.array([n, 1]))
+    rows = np.concatenate([r, r + n, r[on], c[on] + n])
+    cols = np.concatenate([c, c + n, c[on] + n, r[on]])
+    data = np.concatenate([duu, duu, duv[on], duv[on]])
     p, q = farthest_boundary_pair(V, F)
     x = np.zeros(2 * n)
     x[q] = np.linalg.norm(V[q] - V[p])
-    fixed = np.zeros(2 * n, bool)
-    fixed[[p, q, p + n, q + n]] = True
-    free = np.flatnonzero(~fixed)
-    rhs = -(H[free][:, np.flatnonzero(fixed)] @ x[fixed])
-    A = H[free][:, free].tocsc()
-    x[free] = _spd_solve_once(A, rhs)
+    # unknown k -> its index among the free ones (-1: pinned); the pinned ones move to the right side
+    index = np.arange(2 * n)
+    pinned = np.array(sorted({p, q, p + n, q + n}))
+    index = index - np.searchsorted(pinned, index, side="right")
+    index[pinned] = -1
+    ri, ci = index[rows], index[cols]
+    both = (ri >= 0) & (ci >= 0)
+    k = 2 * n - len(pinned)
+    A = sp.csc_matrix((data[both], (ri[both], ci[both])), shape=(k, k))
+    right = (ri >= 0) & (ci < 0)
+    rhs = -np.bincount(ri[right], weights=data[right] * x[cols[right]], minlength=k)
+    x[index >= 0] = _spd_solve_once(A, rhs)
     return np.stack([x[:n], x[n:]], axis=1)
+
+
+def _frames(V, F):
+    """(Q, area) of every triangle (:func:`uvbake.flatten.energy.triangle_frames`)."""
+    from uvbake.flatten.energy import triangle_frames
+
+    _, Q, area = triangle_frames(V, F)
+    return Q, area
 
 
 def _spd_solve_once(A, b):
@@ -239,14 +264,15 @@ def _tips(chart, logf, area, bound):
     return cand[np.argsort(xv[cand], kind="stable")][:MAX_TIPS]
 
 
-def conformal_factor(V, F):
+def conformal_factor(V: np.ndarray, F: np.ndarray, *,
+                     frames: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """LSCM map of a chart and each triangle's log area factor relative to the chart's mean.
 
     Returns (uv (n,2), logf (m,)): logf = log(UV area / 3D area) - log(total UV / total 3D), -inf where
-    the conformal map flips or collapses the triangle."""
-    uv = lscm(V, F)
-    X = V[F]
-    a3 = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    the conformal map flips or collapses the triangle. ``frames`` as in :func:`lscm`."""
+    frames = _frames(V, F) if frames is None else frames
+    uv = lscm(V, F, frames=frames)
+    a3 = frames[1]
     U = uv[F]
     e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
     a2 = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
@@ -331,7 +357,7 @@ def _level_cut(field, fi, fj, w, area, lo, hi):
     return labels
 
 
-def _cut_by_factor(chart, logf, bound):
+def _cut_by_factor(chart, logf, bound, *, area=None):
     """Labels cutting ``chart`` along a short iso-contour of its log area factor.
 
     The level is searched on the side that breaks the budget, between a quarter and the whole of the
@@ -340,8 +366,9 @@ def _cut_by_factor(chart, logf, bound):
 
     V, F = chart.V, chart.F
     m, n = len(F), len(V)
-    X = V[F]
-    area = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    if area is None:
+        X = V[F]
+        area = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
     field = _smoothed(F, n, logf, area)
     o = np.argsort(field, kind="stable")
     ref = field[o][np.searchsorted(np.cumsum(area[o]), 0.5 * area.sum())]
@@ -358,8 +385,29 @@ def _cut_by_factor(chart, logf, bound):
     return lab
 
 
-def make_charts(V, F, labels=None, *, max_stretch=DEFAULT_MAX_STRETCH, max_charts=None, auto_cut=True,
-                progress=None):
+@dataclass
+class _Charting:
+    """The charting stage's state, passed between its steps: the queue of candidate charts (each with
+    the least log factor of the chart it was slit from, or None), the decided charts and their
+    conformal maps, the log, and the work counts that end it."""
+
+    bound: float                     # log(max_stretch)
+    max_charts: int | None
+    budget_solves: int
+    queue: list
+    done: list = dataclasses.field(default_factory=list)
+    starts: list = dataclasses.field(default_factory=list)
+    budget_cuts: list = dataclasses.field(default_factory=list)
+    over: list = dataclasses.field(default_factory=list)
+    solves: int = 0
+
+    def full(self):
+        return self.max_charts is not None and len(self.done) + len(self.queue) + 1 >= self.max_charts
+
+
+def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
+                max_stretch: float = DEFAULT_MAX_STRETCH, max_charts: int | None = None, auto_cut: bool = True,
+                progress: Callable[[str, int, int], None] | None = None) -> tuple[list[Chart], list, dict]:
     """Charts of (V, F) that flatten within the distortion budget, with their conformal start maps.
 
     Returns
@@ -372,62 +420,72 @@ def make_charts(V, F, labels=None, *, max_stretch=DEFAULT_MAX_STRETCH, max_chart
     max_stretch, max_charts = check_budget(max_stretch, max_charts)
     note = progress or (lambda stage, done, total: None)
     disks, cuts = disk_charts(V, F, labels, auto_cut=auto_cut)
-    bound = float(np.log(max_stretch))
-    queue = [(c, None) for c in disks]
-    solves = 0
-    budget_solves = MAX_SOLVES_PER_CHART * len(disks)
-    done, starts, budget_cuts, over = [], [], [], []
+    st = _Charting(float(np.log(max_stretch)), max_charts, MAX_SOLVES_PER_CHART * len(disks),
+                   [(c, None) for c in disks])
     checked = 0
     for _ in range(OVERLAP_ROUNDS + 1):                 # rounds: conformal charts, then their overlaps
-        while queue:                                        # one iteration per conformal solve
-            chart, previous = queue.pop(0)
-            uv, logf = conformal_factor(chart.V, chart.F)
-            solves += 1
-            ok = bool(np.all(np.isfinite(logf)) and logf.min() >= -bound)
-            full = max_charts is not None and len(done) + len(queue) + 1 >= max_charts
-            if ok or len(chart.F) < 2 * MIN_PIECE_FACES or full or solves >= budget_solves:
-                if not ok:
-                    over.append(dict(chart=chart.name, triangles=int(len(chart.F)),
-                                     least_factor=float(np.exp(logf.min())),
-                                     reason="max_charts" if full else "too small to cut" if
-                                     len(chart.F) < 2 * MIN_PIECE_FACES else "work cap"))
-                done.append(chart)
-                starts.append(uv)
-            else:
-                least = float(logf.min())
-                slitted = None
-                # a slit first while it pays (the least factor at least doubles): it adds no chart
-                if previous is None or least > previous + np.log(2.0):
-                    X = chart.V[chart.F]
-                    area = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
-                    slitted = slit(chart, _tips(chart, logf, area, bound))
-                if slitted is not None:
-                    chart2, length = slitted
-                    budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=1, slit=True,
-                                            seam_length=length, least_factor=float(np.exp(least))))
-                    queue.insert(0, (chart2, least))
-                else:
-                    parts = sub_charts(chart, _cut_by_factor(chart, logf, bound))
-                    budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=len(parts),
-                                            least_factor=float(np.exp(least))))
-                    queue.extend((p, None) for p in parts)
-            note("charts", len(done), len(done) + len(queue))
-        # conformal maps that overlap themselves (mostly slit sides that cross instead of opening)
-        # predict the solve's overlaps: split those charts between the two sheets now, before solving
-        from uvbake.atlas.guarantee import overlapping_pairs, separating_split
-
-        fresh = list(range(checked, len(done)))
-        pairs = overlapping_pairs([done[i] for i in fresh], [starts[i] for i in fresh])
-        bad = {i: p for i, p in zip(fresh, pairs) if len(p) and len(done[i].F) >= 2}
-        if not bad or (max_charts is not None and len(done) + len(bad) > max_charts):
+        while st.queue:                                 # one iteration per conformal solve
+            _decide(st, *st.queue.pop(0))
+            note("charts", len(st.done), len(st.done) + len(st.queue))
+        if not _separate_overlaps(st, checked):
             break
-        keep = [i for i in range(len(done)) if i not in bad]
-        for i in sorted(bad):
-            parts, _, rec = separating_split(done[i], starts[i], bad[i])
-            budget_cuts.append(rec)
-            queue.extend((p, None) for p in parts)
-        done, starts = [done[i] for i in keep], [starts[i] for i in keep]
-        checked = len(done)
-    for i, c in enumerate(done):
+        checked = len(st.done)
+    from uvbake.atlas.merge import merge_back
+
+    merge_back(st)
+    for i, c in enumerate(st.done):
         c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
-    return done, starts, dict(cuts=cuts, budget_cuts=budget_cuts, over_budget=over, conformal_solves=solves)
+    return st.done, st.starts, dict(cuts=cuts, budget_cuts=st.budget_cuts, over_budget=st.over,
+                                    conformal_solves=st.solves)
+
+
+def _decide(st, chart, previous):
+    """One conformal solve of ``chart``: keep it (within the budget, or a work count says stop), or
+    slit it (while slits pay: the least factor at least doubles; a slit adds no chart), or cut it."""
+    frames = _frames(chart.V, chart.F)
+    uv, logf = conformal_factor(chart.V, chart.F, frames=frames)
+    st.solves += 1
+    ok = bool(np.all(np.isfinite(logf)) and logf.min() >= -st.bound)
+    small = len(chart.F) < 2 * MIN_PIECE_FACES
+    if ok or small or st.full() or st.solves >= st.budget_solves:
+        if not ok:
+            reason = "max_charts" if st.full() else "too small to cut" if small else "work cap"
+            st.over.append(dict(chart=chart.name, triangles=int(len(chart.F)),
+                                least_factor=float(np.exp(logf.min())), reason=reason))
+        st.done.append(chart)
+        st.starts.append(uv)
+        return
+    least = float(logf.min())
+    slitted = None
+    if previous is None or least > previous + np.log(2.0):
+        slitted = slit(chart, _tips(chart, logf, frames[1], st.bound))
+    if slitted is not None:
+        chart2, length = slitted
+        st.budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=1, slit=True,
+                                   seam_length=length, least_factor=float(np.exp(least))))
+        st.queue.insert(0, (chart2, least))
+        return
+    parts = sub_charts(chart, _cut_by_factor(chart, logf, st.bound, area=frames[1]))
+    st.budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=len(parts),
+                               least_factor=float(np.exp(least))))
+    st.queue.extend((p, None) for p in parts)
+
+
+def _separate_overlaps(st, checked):
+    """Conformal maps that overlap themselves (mostly slit sides that cross instead of opening)
+    predict the solve's overlaps: split the charts decided since ``checked`` between their two sheets
+    now, before solving, and queue the parts. Returns whether anything was queued."""
+    from uvbake.atlas.guarantee import overlapping_pairs, separating_split
+
+    fresh = list(range(checked, len(st.done)))
+    pairs = overlapping_pairs([st.done[i] for i in fresh], [st.starts[i] for i in fresh])
+    bad = {i: p for i, p in zip(fresh, pairs) if len(p) and len(st.done[i].F) >= 2}
+    if not bad or (st.max_charts is not None and len(st.done) + len(bad) > st.max_charts):
+        return False
+    keep = [i for i in range(len(st.done)) if i not in bad]
+    for i in sorted(bad):
+        parts, _, rec = separating_split(st.done[i], st.starts[i], bad[i])
+        st.budget_cuts.append(rec)
+        st.queue.extend((p, None) for p in parts)
+    st.done, st.starts = [st.done[i] for i in keep], [st.starts[i] for i in keep]
+    return True

@@ -22,14 +22,23 @@ count (``max_splits``), never by time.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from uvbake.flatten.energy import DistortionEnergy
+    from uvbake.flatten.solvers.result import ParamResult
+    from uvbake.mesh.charts import Chart
 
 #: Fraction of the largest determinant-keeping step that is taken.
 STEP_SHRINK = 0.9
 
 
-def determinant_step_limit(energy, uv_fixed):
+def determinant_step_limit(energy: DistortionEnergy, uv_fixed: np.ndarray) -> Callable[[np.ndarray, np.ndarray], float]:
     """``limit(x, delta) -> t`` in (0, 1]: the step fraction keeping every det A > 0 (see module notes)."""
     zero = np.zeros_like(np.asarray(uv_fixed, dtype=np.float64))
 
@@ -46,7 +55,7 @@ def determinant_step_limit(energy, uv_fixed):
     return limit
 
 
-def smallest_positive_root(c0, c1, c2):
+def smallest_positive_root(c0: ArrayLike, c1: ArrayLike, c2: ArrayLike) -> np.ndarray:
     """Per entry, the smallest t > 0 with c0 + c1 t + c2 t^2 = 0 (inf where there is none).
 
     Roots from the cancellation-free pair q / c2 and c0 / q, q = -(c1 + sign(c1) sqrt(disc)) / 2."""
@@ -63,7 +72,7 @@ def smallest_positive_root(c0, c1, c2):
     return np.minimum(r1, r2)
 
 
-def area_factors(chart, uv):
+def area_factors(chart: Chart, uv: ArrayLike) -> np.ndarray:
     """(m,) each triangle's UV area over its 3D area, relative to the chart's mean (signed: <= 0 is
     flipped or collapsed)."""
     X = chart.V[chart.F]
@@ -84,7 +93,7 @@ def area_factors(chart, uv):
 LOW_AREA_SHARE = 0.004
 
 
-def starved_or_flipped(chart, uv, max_stretch):
+def starved_or_flipped(chart: Chart, uv: ArrayLike, max_stretch: float) -> np.ndarray:
     """Triangles that are flipped, collapsed, or starved: below 1/max_stretch^2 of the chart's mean
     texel density, and also those below 1/max_stretch when they cover more than LOW_AREA_SHARE of
     the chart. Charting keeps the conformal start at 1/max_stretch or more; the solve may move a few
@@ -101,7 +110,7 @@ def starved_or_flipped(chart, uv, max_stretch):
     return np.flatnonzero(bad)
 
 
-def equalise_density(chart, result):
+def equalise_density(chart: Chart, result: ParamResult) -> ParamResult:
     """Scale the result's map uniformly so its UV area equals the chart's 3D area, in place (one texel
     density for all charts: a triangle's texel share in the packed atlas is then its area factor in
     its chart). The energy is re-evaluated at the scaled map (F is not scale-invariant); the scale is
@@ -123,7 +132,7 @@ def equalise_density(chart, result):
     return result
 
 
-def split_bad(chart, uv, bad):
+def split_bad(chart: Chart, uv: ArrayLike, bad: np.ndarray) -> tuple[list[Chart], list[np.ndarray], dict]:
     """Split ``chart`` once so ``bad`` triangles go to one side; each side with the parent's map.
 
     Returns (parts, starts, record)."""
@@ -142,7 +151,7 @@ def split_bad(chart, uv, bad):
     return parts, starts, rec
 
 
-def separating_split(chart, uv, pairs):
+def separating_split(chart: Chart, uv: ArrayLike, pairs: ArrayLike) -> tuple[list[Chart], list[np.ndarray], dict]:
     """Split ``chart`` once so that the two triangles of each overlapping pair (local (p,2) indices)
     go to different parts: the two sheets that overlap in the plane (the sides of a slit, two fans
     meeting at a vertex, a boundary that curls over itself) become two charts.
@@ -205,10 +214,10 @@ def _positions(haystack, needles):
     return order[np.searchsorted(haystack[order], needles)]
 
 
-def overlapping_pairs(charts, uvs):
+def overlapping_pairs(charts: list[Chart], uvs: list[np.ndarray]) -> list[np.ndarray]:
     """Overlapping triangle pairs inside each chart, as a list of local (p,2) arrays, from one exact
-    check (:func:`uvbake.validation.validate`) of all the charts laid side by side on shelves."""
-    from uvbake.validate import validate
+    check (the exact pass of :func:`uvbake.validate.validate`) of all the charts laid side by side on shelves."""
+    from uvbake.validate.core import overlap_pairs
 
     if not charts:
         return []
@@ -227,8 +236,7 @@ def overlapping_pairs(charts, uvs):
     F = np.concatenate([c.F + k for c, k in zip(charts, np.cumsum([0] + [len(c.V) for c in charts[:-1]]))])
     ids = np.repeat(np.arange(len(charts)), [len(c.F) for c in charts])
     first = np.cumsum([0] + [len(c.F) for c in charts[:-1]])
-    rep = validate(corner, F, chart_ids=ids, resolution_px=1024)
-    pairs = np.asarray(rep.overlap_pairs, dtype=np.int64).reshape(-1, 2)
+    pairs = overlap_pairs(corner, F, chart_ids=ids)
     owner = ids[pairs[:, 0]] if len(pairs) else np.zeros(0, np.int64)
     return [pairs[owner == i] - first[i] for i in range(len(charts))]
 
@@ -250,51 +258,66 @@ def _solve_flip_free(charts, starts, options, workers, progress):
     return results
 
 
-def solve_valid(charts, starts, options, *, max_stretch, workers=None, max_splits=256, max_rounds=8,
-                note=None):
+def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *, max_stretch: float,
+                workers: int | None = None, max_splits: int = 256, max_rounds: int = 8,
+                note: Callable[[str, int, int], None] | None = None) -> tuple[list[Chart], list[ParamResult], list[dict]]:
     """Solve every chart with the injective LM from its start, then check each chart once: what
     starves (or flipped because the start was not valid) is split once per bad region, overlapping
     sheets are split apart, and only the parts are solved again, from the parent's map. Rounds and
-    splits are bounded by counts (``max_rounds``, ``max_splits``), never by time.
+    splits are bounded by counts (``max_rounds``, ``max_splits``), never by time. Only the charts
+    that changed in a round are checked in the next.
 
     Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart."""
     note = note or (lambda stage, done, total: None)
     charts, starts = list(charts), list(starts)
     results = _solve_flip_free(charts, starts, options, workers, lambda d, n, r: note("solve", d, n))
-    splits = []
+    splits: list[dict] = []
     todo = list(range(len(charts)))
     for _ in range(max_rounds):                       # rounds: each splits every bad chart once
         if not todo or len(splits) >= max_splits:
             break
-        overlaps = overlapping_pairs([charts[i] for i in todo], [results[i].uv for i in todo])
-        new = []
-        for i, pairs in zip(todo, overlaps):
-            c = charts[i]
-            if len(c.F) < 2 or len(splits) >= max_splits:
-                continue
-            bad = starved_or_flipped(c, results[i].uv, max_stretch)
-            if len(bad):
-                parts, pstarts, rec = split_bad(c, results[i].uv, bad)
-            elif len(pairs):
-                parts, pstarts, rec = separating_split(c, results[i].uv, pairs)
-            else:
-                continue
-            splits.append(rec)
-            new.append((i, parts, pstarts))
+        new = _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits)
         if not new:
             break
         flat = [p for _, parts, _ in new for p in parts]
         flat_starts = [s for _, _, st in new for s in st]
         solved = _solve_flip_free(flat, flat_starts, options, workers, lambda d, n, r: note("split", d, n))
-        replace, it = {}, iter(solved)
-        for i, parts, _ in new:
-            replace[i] = [(p, next(it)) for p in parts]
-        out_c, out_r, todo = [], [], []
-        for i, (c, r) in enumerate(zip(charts, results)):
-            for p, pr in replace.get(i, [(c, r)]):
-                if i in replace:
-                    todo.append(len(out_c))
-                out_c.append(p)
-                out_r.append(pr)
-        charts, results = out_c, out_r
+        charts, results, todo = _replace_split(charts, results, new, solved)
     return charts, results, splits
+
+
+def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits):
+    """Split each chart in ``todo`` that starves, flipped or overlaps itself, once (records appended
+    to ``splits``). Returns [(chart index, parts, their starts)]."""
+    overlaps = overlapping_pairs([charts[i] for i in todo], [results[i].uv for i in todo])
+    new = []
+    for i, pairs in zip(todo, overlaps):
+        c = charts[i]
+        if len(c.F) < 2 or len(splits) >= max_splits:
+            continue
+        bad = starved_or_flipped(c, results[i].uv, max_stretch)
+        if len(bad):
+            parts, pstarts, rec = split_bad(c, results[i].uv, bad)
+        elif len(pairs):
+            parts, pstarts, rec = separating_split(c, results[i].uv, pairs)
+        else:
+            continue
+        splits.append(rec)
+        new.append((i, parts, pstarts))
+    return new
+
+
+def _replace_split(charts, results, new, solved):
+    """Charts and results with each split chart replaced by its solved parts in place, and the
+    indices of those parts (the next round's charts to check)."""
+    replace, it = {}, iter(solved)
+    for i, parts, _ in new:
+        replace[i] = [(p, next(it)) for p in parts]
+    out_c, out_r, todo = [], [], []
+    for i, (c, r) in enumerate(zip(charts, results)):
+        for p, pr in replace.get(i, [(c, r)]):
+            if i in replace:
+                todo.append(len(out_c))
+            out_c.append(p)
+            out_r.append(pr)
+    return out_c, out_r, todo

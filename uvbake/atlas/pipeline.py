@@ -14,10 +14,15 @@ formulation as is (charts from labels and disk cuts only, plain LM, nothing repa
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uvbake.analysis.metrics import chart_distortion, distortion_summary
 from uvbake.cancel import check_cancelled
@@ -64,7 +69,8 @@ class UnwrapResult:
     vertex_colors: np.ndarray | None
     report: dict = field(default_factory=dict)
 
-    def save(self, path, *, report_path=None, keep_vertex_colors=False, force=False):
+    def save(self, path: str | os.PathLike[str], *, report_path: str | os.PathLike[str] | None = None,
+             keep_vertex_colors: bool = False, force: bool = False) -> list[Path]:
         """Write the textured mesh (OBJ+MTL+PNG or GLB by extension) and optionally the JSON report.
 
         The texture alone carries the colour: viewers multiply vertex colours (glTF ``COLOR_0``, OBJ
@@ -74,7 +80,6 @@ class UnwrapResult:
         ``force`` replaces read-only files.
         """
         import json
-        from pathlib import Path
 
         from uvbake.io.atomic import OutputSet
         from uvbake.io.export import textured_files
@@ -97,11 +102,14 @@ def _blank(size):
     return np.full((size, size, 3), 255, np.uint8)
 
 
-def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS.backend, tol=DEFAULTS.tol,
-           max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed, face_labels=None, texture_size_px=1024, gutter_px=None,
-           bake=None, auto_cut=True, repair=True, weld=None, guarantee=True, max_stretch=None, max_charts=None,
-           max_splits=256, continuation=DEFAULTS.continuation, workers=None, progress=None, callback=None,
-           texel_density=None, mip_levels=None):
+def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.init, backend: str = DEFAULTS.backend,
+           tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter, seed: int = DEFAULTS.seed,
+           face_labels: ArrayLike | None = None, texture_size_px: int | None = 1024, gutter_px: int | None = None,
+           bake: str | None = None, auto_cut: bool = True, repair: bool = True, weld: bool | None = None,
+           guarantee: bool = True, max_stretch: float | None = None, max_charts: int | None = None,
+           max_splits: int = 256, continuation: bool = DEFAULTS.continuation, workers: int | None = None,
+           progress: Callable[[str, int, int], None] | None = None, callback: Callable | None = None,
+           texel_density: float | None = None, mip_levels: int | None = None) -> UnwrapResult:
     """Unwrap a mesh into a validated texture atlas.
 
     Parameters
@@ -166,133 +174,191 @@ def unwrap(source, *, alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS
                        progress=progress, callback=callback, texel_density=texel_density, mip_levels=mip_levels)
 
 
-def _unwrap(source, *, alpha, init, backend, tol, max_iter, seed, face_labels, texture_size_px, gutter_px, bake,
-            auto_cut, repair, weld, guarantee, max_stretch, max_charts, max_splits, continuation, workers,
-            progress, callback, texel_density, mip_levels):
+@dataclass
+class _Run:
+    """One unwrap's state, passed from stage to stage: the options, the mesh and what each stage made."""
+
+    opts: dict
+    solve_options: SolveOptions
+    note: object
+    solve_kwargs: dict
+    timings: dict = field(default_factory=dict)
+    V: np.ndarray | None = None
+    F: np.ndarray | None = None
+    labels: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    source_name: object = None
+    repair_report: dict | None = None
+    k: int = 0
+    charts: list = field(default_factory=list)
+    starts: list | None = None
+    chart_log: dict = field(default_factory=dict)
+    n_charts_input: int = 0
+    results: list = field(default_factory=list)
+    splits: list = field(default_factory=list)
+
+
+def _unwrap(source, **opts):
     from uvbake.atlas.charting import DEFAULT_MAX_STRETCH, check_budget
 
     t0 = time.perf_counter()
-    timings = {}
-    solve_options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
-                                 continuation=continuation)
-    if bake not in BAKE_MODES:
-        raise InputError(f"bake={bake!r} is not one of None, 'checker', 'vertex-colors'")
-    check_texture(texture_size_px, gutter_px, texel_density)
-    max_stretch, max_charts = check_budget(DEFAULT_MAX_STRETCH if max_stretch is None else max_stretch,
-                                           max_charts)
-    if weld not in (None, True, False):
-        raise InputError(f"weld={weld!r} must be True, False or None (weld only soup-like input)")
-    user_note = progress or (lambda stage, done, total: None)
+    solve_options = SolveOptions(**{k: opts[k] for k in ("alpha", "init", "backend", "tol", "max_iter", "seed",
+                                                         "continuation")})
+    if opts["bake"] not in BAKE_MODES:
+        raise InputError(f"bake={opts['bake']!r} is not one of None, 'checker', 'vertex-colors'")
+    check_texture(opts["texture_size_px"], opts["gutter_px"], opts["texel_density"])
+    opts["max_stretch"], opts["max_charts"] = check_budget(
+        DEFAULT_MAX_STRETCH if opts["max_stretch"] is None else opts["max_stretch"], opts["max_charts"])
+    if opts["weld"] not in (None, True, False):
+        raise InputError(f"weld={opts['weld']!r} must be True, False or None (weld only soup-like input)")
+    run = _Run(opts, solve_options, _noter(opts["progress"]), {})
+    run.solve_kwargs = dict(options=solve_options, callback=_per_iteration(run.note, opts["callback"],
+                                                                             opts["max_iter"]))
+    _stage_load(run, source)
+    _stage_charts(run)
+    _stage_solve(run)
+    packed, corner_uv, chart_ids, verdict = _pack_and_validate(run.V, run.F, run.charts, run.results, run.timings,
+                                                               {k: opts[k] for k in ("texture_size_px", "gutter_px",
+                                                                                     "texel_density", "mip_levels")})
+    opts["texture_size_px"], opts["gutter_px"] = packed.width_px, packed.gutter_px   # grown, or from mip_levels
+    run.note("pack", 1, 1)
+    image = _stage_bake(run, corner_uv, packed)
+    run.timings["total_s"] = time.perf_counter() - t0
+    report = _report(run, corner_uv, packed, verdict)
+    V = np.ldexp(run.V, run.k) if run.k else run.V     # the input's coordinates (the scaling by 2**-k is exact)
+    return UnwrapResult(V, run.F, corner_uv, run.charts, run.results, chart_ids, image, run.colors, report)
 
+
+def _noter(progress):
+    """``note(stage, done, total)``: polls for SIGINT/SIGTERM (every stage and iteration), then tells
+    the user's ``progress``."""
     def note(stage, done, total):
-        check_cancelled()                        # SIGINT/SIGTERM: every stage and iteration polls
-        user_note(stage, done, total)
+        check_cancelled()
+        if progress is not None:
+            progress(stage, done, total)
 
+    return note
+
+
+def _per_iteration(note, callback, max_iter):
     def per_iteration(info):
         note("iterate", info["iteration"], max_iter)
         return callback(info) if callback is not None else None
 
-    options = dict(options=solve_options, callback=per_iteration)
+    return per_iteration
 
+
+def _stage_load(run, source):
+    opts = run.opts
     t = time.perf_counter()
-    V, F, labels, colors, source_name, repair_report, k = _load(source, face_labels, repair, weld)
-    if bake == "vertex-colors" and colors is None:
-        raise InputError(f"{source_name}: has no vertex colours to bake; use --bake-mode checker")
-    timings["load_repair_s"] = time.perf_counter() - t
+    run.V, run.F, run.labels, run.colors, run.source_name, run.repair_report, run.k = _load(
+        source, opts["face_labels"], opts["repair"], opts["weld"])
+    if opts["bake"] == "vertex-colors" and run.colors is None:
+        raise InputError(f"{run.source_name}: has no vertex colours to bake; use --bake-mode checker")
+    run.timings["load_repair_s"] = time.perf_counter() - t
     check_cancelled()
-    n_pieces = _count_pieces(F, len(V), labels)
+    n_pieces = _count_pieces(run.F, len(run.V), run.labels)
     if n_pieces > MAX_PIECES:
-        raise InputError(f"{source_name}: the mesh is {n_pieces} separate pieces, which would be at least "
+        raise InputError(f"{run.source_name}: the mesh is {n_pieces} separate pieces, which would be at least "
                          f"{n_pieces} charts; uvbake unwraps at most {MAX_PIECES} pieces (none is dropped "
                          "silently); weld coincident vertices (weld=True, --weld), or remove the small pieces first")
 
+
+def _stage_charts(run):
+    opts = run.opts
     t = time.perf_counter()
-    if guarantee:
+    if opts["guarantee"]:
         from uvbake.atlas.charting import make_charts
 
-        charts, starts, chart_log = make_charts(V, F, labels, max_stretch=max_stretch, max_charts=max_charts,
-                                                auto_cut=auto_cut, progress=note)
+        run.charts, run.starts, run.chart_log = make_charts(
+            run.V, run.F, run.labels, max_stretch=opts["max_stretch"], max_charts=opts["max_charts"],
+            auto_cut=opts["auto_cut"], progress=run.note)
     else:
         from uvbake.atlas.charting import disk_charts
 
-        charts, cuts = disk_charts(V, F, labels, auto_cut=auto_cut)
-        for i, c in enumerate(charts):
+        run.charts, cuts = disk_charts(run.V, run.F, run.labels, auto_cut=opts["auto_cut"])
+        for i, c in enumerate(run.charts):
             c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
-        starts, chart_log = None, dict(cuts=cuts, budget_cuts=[], over_budget=[], conformal_solves=0)
-        note("charts", len(charts), len(charts))
-    n_charts_input = len(charts)
-    timings["charts_s"] = time.perf_counter() - t
+        run.starts, run.chart_log = None, dict(cuts=cuts, budget_cuts=[], over_budget=[], conformal_solves=0)
+        run.note("charts", len(run.charts), len(run.charts))
+    run.n_charts_input = len(run.charts)
+    run.timings["charts_s"] = time.perf_counter() - t
 
+
+def _stage_solve(run):
+    opts = run.opts
     t = time.perf_counter()
-    splits = []
-    if guarantee:
+    if opts["guarantee"]:
         from uvbake.atlas.guarantee import equalise_density, solve_valid
 
-        charts, results, splits = solve_valid(charts, starts, options, max_stretch=max_stretch, workers=workers,
-                                              max_splits=max_splits, note=note)
-        for c, r in zip(charts, results):
+        run.charts, run.results, run.splits = solve_valid(
+            run.charts, run.starts, run.solve_kwargs, max_stretch=opts["max_stretch"], workers=opts["workers"],
+            max_splits=opts["max_splits"], note=run.note)
+        for c, r in zip(run.charts, run.results):
             equalise_density(c, r)
     else:
-        results = parameterize_charts(charts, workers=workers,
-                                      progress=lambda d, n, r: note("solve", d, n), **options)
-    timings["solve_s"] = time.perf_counter() - t
+        run.results = parameterize_charts(run.charts, workers=opts["workers"],
+                                          progress=lambda d, n, r: run.note("solve", d, n), **run.solve_kwargs)
+    run.timings["solve_s"] = time.perf_counter() - t
 
-    packed, corner_uv, chart_ids, verdict = _pack_and_validate(V, F, charts, results, timings, dict(
-        texture_size_px=texture_size_px, gutter_px=gutter_px, texel_density=texel_density, mip_levels=mip_levels))
-    texture_size_px, gutter_px = packed.width_px, packed.gutter_px      # grown, or derived from mip_levels
-    note("pack", 1, 1)
 
+def _stage_bake(run, corner_uv, packed):
+    bake = run.opts["bake"]
     image = None
     t = time.perf_counter()
     if bake is not None:
         from uvbake.atlas.bake import bake_checker, bake_vertex_colors
 
+        size = run.opts["texture_size_px"]
         if bake == "checker":
-            image = bake_checker(V, F, corner_uv, texture_size_px=texture_size_px,
+            image = bake_checker(run.V, run.F, corner_uv, texture_size_px=size,
                                  texel_size_world=packed.texel_size_world)
         else:
-            image = bake_vertex_colors(V, F, corner_uv, colors, texture_size_px=texture_size_px)
-        note("bake", 1, 1)
-    timings["bake_s"] = time.perf_counter() - t
-    timings["total_s"] = time.perf_counter() - t0
+            image = bake_vertex_colors(run.V, run.F, corner_uv, run.colors, texture_size_px=size)
+        run.note("bake", 1, 1)
+    run.timings["bake_s"] = time.perf_counter() - t
+    return image
 
+
+def _report(run, corner_uv, packed, verdict):
+    """The JSON-ready report of a finished run."""
     from uvbake.analysis.metrics import texel_summary
 
-    texels = texel_summary(V, F, corner_uv)
+    opts, log, charts, results = run.opts, run.chart_log, run.charts, run.results
+    texels = texel_summary(run.V, run.F, corner_uv)
+    per_chart = [chart_distortion(c.V, c.F, r.uv) for c, r in zip(charts, results)]   # once per chart
+    shown = ("texture_size_px", "gutter_px", "bake", "auto_cut", "repair", "weld", "guarantee", "max_stretch",
+             "max_charts", "texel_density", "mip_levels")
     report = {
-        "input": source_name,
-        "vertices": int(len(V)),
-        "triangles": int(len(F)),
-        "options": solve_options.report()
-        | dict(texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake, auto_cut=auto_cut,
-               repair=repair, weld=weld, guarantee=guarantee, max_stretch=max_stretch, max_charts=max_charts,
-               texel_density=texel_density, mip_levels=mip_levels),
-        "repair": repair_report,
-        "charts_input": n_charts_input,
+        "input": run.source_name,
+        "vertices": int(len(run.V)),
+        "triangles": int(len(run.F)),
+        "options": run.solve_options.report() | {k: opts[k] for k in shown},
+        "repair": run.repair_report,
+        "charts_input": run.n_charts_input,
         "charts_final": len(charts),
-        "cuts": chart_log["cuts"],
-        "budget_cuts": chart_log["budget_cuts"],
-        "over_budget": chart_log["over_budget"],
-        "splits": splits,
-        "seam_length_added": float(sum(c["seam_length"] for c in chart_log["cuts"])
-                                   + sum(c.get("seam_length", 0.0) for c in chart_log["budget_cuts"])
-                                   + sum(s["seam_length"] for s in splits)),
-        "distortion": {"final": _distortion_summary(charts, results)},
-        "charts": [dict(name=c.name, label=c.label, triangles=int(len(c.F)),
-                        **_distortion(c, r), **r.to_dict()) for c, r in zip(charts, results)],
-        "atlas": dict(texture_size_px=texture_size_px, gutter_px=gutter_px, **_pack_summary(packed),
+        "cuts": log["cuts"],
+        "budget_cuts": log["budget_cuts"],
+        "over_budget": log["over_budget"],
+        "splits": run.splits,
+        "seam_length_added": float(sum(c["seam_length"] for c in log["cuts"])
+                                   + sum(c.get("seam_length", 0.0) for c in log["budget_cuts"])
+                                   + sum(s["seam_length"] for s in run.splits)),
+        "distortion": {"final": distortion_summary(per_chart, flipped=sum(r.n_flipped for r in results),
+                                                   energy=sum(r.energy for r in results))},
+        "charts": [dict(name=c.name, label=c.label, triangles=int(len(c.F)), **d, **r.to_dict())
+                   for c, r, d in zip(charts, results, per_chart)],
+        "atlas": dict(texture_size_px=opts["texture_size_px"], gutter_px=opts["gutter_px"], **_pack_summary(packed),
                       validation=verdict.to_dict()),
         **texels,
         "valid": bool(verdict.valid),
         "all_converged": bool(all(r.converged for r in results)),
         "n_flipped_total": int(sum(r.n_flipped for r in results)),
-        "timings": timings,
+        "timings": run.timings,
     }
-    if k:
-        report["coordinate_exponent"] = k   # lengths and areas above are in units of 2**k
-    # the input's own coordinates (the scaling by 2**-k is exact both ways)
-    return UnwrapResult(np.ldexp(V, k) if k else V, F, corner_uv, charts, results, chart_ids, image, colors,
-                        report)
+    if run.k:
+        report["coordinate_exponent"] = run.k   # lengths and areas above are in units of 2**k
+    return report
 
 
 def _load(source, face_labels, repair, weld):
@@ -354,7 +420,7 @@ def _pack_and_validate(V, F, charts, results, timings, pack_options):
     return packed, corner_uv, chart_ids, verdict
 
 
-def check_texture(texture_size_px, gutter_px, texel_density=None):
+def check_texture(texture_size_px: int | None, gutter_px: int | None, texel_density: float | None = None) -> None:
     if texture_size_px is None and texel_density is not None:
         limit = 16384 // 8
     elif isinstance(texture_size_px, bool) or not isinstance(texture_size_px, (int, np.integer)) \
@@ -368,15 +434,6 @@ def check_texture(texture_size_px, gutter_px, texel_density=None):
             or not 0 <= gutter_px <= limit:
         raise InputError(f"gutter_px={gutter_px!r} must be a whole number of texels from 0 to "
                          f"{limit} (an eighth of the texture)")
-
-
-def _distortion(chart, result):
-    return chart_distortion(chart.V, chart.F, result.uv)
-
-
-def _distortion_summary(charts, results):
-    return distortion_summary([_distortion(c, r) for c, r in zip(charts, results)],
-                              flipped=sum(r.n_flipped for r in results), energy=sum(r.energy for r in results))
 
 
 def _pack_summary(packed):

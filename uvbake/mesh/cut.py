@@ -393,7 +393,7 @@ def split_where(V: ArrayLike, F: ArrayLike, bad_faces: ArrayLike, *, min_fractio
         return bisect(V, F, min_fraction=min_fraction)
 
 
-def cut_to_disks(V: ArrayLike, F: ArrayLike, *, max_charts: int = 64) -> np.ndarray:
+def cut_to_disks(V: ArrayLike, F: ArrayLike, *, max_charts: int = 64, manifold: bool = False) -> np.ndarray:
     """Label the triangles so that every label is one disk with holes (genus 0, at least one boundary).
 
     Closed pieces and pieces with handles are bisected (:func:`bisect`) until every piece is a disk
@@ -406,6 +406,7 @@ def cut_to_disks(V: ArrayLike, F: ArrayLike, *, max_charts: int = 64) -> np.ndar
     V : (n,3) float array
     F : (m,3) int array             a manifold, consistently oriented mesh (any number of pieces)
     max_charts : int                raise when more charts than this would be needed
+    manifold : bool                 the caller has checked that (V, F) is manifold (skip that check)
 
     Returns
     -------
@@ -416,22 +417,11 @@ def cut_to_disks(V: ArrayLike, F: ArrayLike, *, max_charts: int = 64) -> np.ndar
     ------
     ChartError  for non-manifold edges or vertices (repair first), or when `max_charts` is exceeded.
     """
-    from uvbake.mesh.topology import nonmanifold_vertices
-
     V, F = check_arrays(V, F, where="cut_to_disks")
     n, m = len(V), len(F)
     fi, fj, ea, eb, hi, hj = _dual_edges(F, n)
-    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])
-    uk, cnt = np.unique(key, return_counts=True)
-    if (cnt > 2).any():
-        bad = uk[cnt > 2]
-        pairs = ", ".join(f"({k // n},{k % n})" for k in bad[:5])
-        raise ChartError(f"cut_to_disks: {len(bad)} non-manifold edges ({pairs}); run uvbake.mesh.repair.repair first")
-    bow = nonmanifold_vertices(F, n)
-    if len(bow):
-        raise ChartError(f"cut_to_disks: {len(bow)} non-manifold vertices ({_list(bow)}); "
-                         "run uvbake.mesh.repair.repair first")
+    if not manifold:
+        _check_manifold(F, n)
     _, labels = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(m, m)),
                                       directed=False)
     labels = labels.astype(np.int64)
@@ -459,3 +449,20 @@ def cut_to_disks(V: ArrayLike, F: ArrayLike, *, max_charts: int = 64) -> np.ndar
     rank = np.full(labels.max() + 1, -1)
     rank[used[np.argsort(first[used])]] = np.arange(len(used))
     return rank[labels]
+
+
+def _check_manifold(F, n):
+    """Raise a ChartError naming non-manifold edges or vertices."""
+    from uvbake.mesh.topology import nonmanifold_vertices
+
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])
+    uk, cnt = np.unique(key, return_counts=True)
+    if (cnt > 2).any():
+        bad = uk[cnt > 2]
+        pairs = ", ".join(f"({k // n},{k % n})" for k in bad[:5])
+        raise ChartError(f"cut_to_disks: {len(bad)} non-manifold edges ({pairs}); run uvbake.mesh.repair.repair first")
+    bow = nonmanifold_vertices(F, n)
+    if len(bow):
+        raise ChartError(f"cut_to_disks: {len(bow)} non-manifold vertices ({_list(bow)}); "
+                         "run uvbake.mesh.repair.repair first")

@@ -22,10 +22,21 @@ class Topology:
 
 
 def _edges(F, n):
+    """Half-edges (3m,2), the sorted distinct edge keys, and the boundary half-edges (edges of one
+    triangle only) in half-edge order: one sort, no inverse permutation (np.unique's cost 6x)."""
     he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.sort(he, axis=1)
-    uniq, inv, cnt = np.unique(key[:, 0] * n + key[:, 1], return_inverse=True, return_counts=True)
-    return he, uniq, he[cnt[inv] == 1]
+    key = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])
+    s = np.sort(key)
+    same = s[1:] == s[:-1]
+    alone = np.ones(len(s), bool)
+    alone[1:] &= ~same
+    alone[:-1] &= ~same
+    uniq = s[np.concatenate([[True], ~same])] if len(s) else s
+    once = s[alone]
+    if not len(once):
+        return he, uniq, he[:0]
+    at = np.minimum(np.searchsorted(once, key), len(once) - 1)
+    return he, uniq, he[once[at] == key]
 
 
 def boundary_edges(F: ArrayLike, n_vertices: int | None = None) -> np.ndarray:

@@ -1,0 +1,169 @@
+"""Merging charts back: the charting stage's last step (:func:`uvbake.atlas.charting.make_charts`).
+
+    merge_back(state)          # state: the charting's _Charting (decided charts, their conformal maps)
+    joined = join_charts(a, b) # one chart of two neighbours, or None when it would not be a disk
+
+The budget loop cuts greedily, one chart at a time, and some parts do not need their own chart once
+their neighbour is cut too. Measurements: docs/decisions/atlas-speed.md.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from uvbake.mesh.charts import Chart
+
+if TYPE_CHECKING:
+    from uvbake.atlas.charting import _Charting
+
+#: Merge attempts per chart (each one conformal solve of the merged chart and one overlap check).
+MERGE_TRIES = 2
+#: A merged chart's least area factor must be at least max_stretch ** -MERGE_SHARE_OF_BUDGET.
+MERGE_SHARE_OF_BUDGET = 0.5
+
+
+def merge_back(st: _Charting) -> None:
+    """Merge charts back into a neighbour when the merged chart still flattens within the budget
+    with no overlap: budget cuts and overlap separations are decided greedily, one chart at a time,
+    and some of their parts turn out not to need their own chart once their neighbour is cut too
+    (halftunnel: 13 charts, 4 of them from separating small overlapping sheets). Smallest charts
+    first, each tried against its MERGE_TRIES neighbours of the same label with the longest shared
+    border; a merged chart is tried again later as a whole. Counted work: at most MERGE_TRIES
+    attempts per chart, never time."""
+    from uvbake.atlas.charting import conformal_factor
+    from uvbake.atlas.guarantee import area_factors, overlapping_pairs
+
+    serial = list(range(len(st.done)))                 # identity of each chart (merged ones get new numbers)
+    area = [_area(c) for c in st.done]
+    least = [float(area_factors(c, uv).min()) for c, uv in zip(st.done, st.starts)]
+    tried: set[tuple[int, int]] = set()
+    cache: dict = {}                                   # boundary of each chart, computed once
+    border = chart_borders(st.done, cache)
+    while True:
+        candidate = _next_merge(border, area, serial, tried)
+        if candidate is None:
+            return
+        i, j = candidate
+        tried.add(_pair(serial[i], serial[j]))         # a pair is tried once, from either side
+        merged = join_charts(st.done[i], st.done[j], cache)
+        if merged is None:
+            continue
+        uv, logf = conformal_factor(merged.V, merged.F)
+        st.solves += 1
+        # within half the budget (in log terms), or no worse than the worse of the two: the LM moves
+        # factors after the merge (camelhead at alpha 0: least share 0.19 against 0.31 with the whole budget)
+        floor = min(-MERGE_SHARE_OF_BUDGET * st.bound, np.log(min(least[i], least[j])))
+        if not (np.all(np.isfinite(logf)) and logf.min() >= max(-st.bound, floor)):
+            continue
+        if len(overlapping_pairs([merged], [uv])[0]):
+            continue
+        keep, drop = min(i, j), max(i, j)
+        st.budget_cuts.append(dict(merged=[st.done[i].name, st.done[j].name], triangles=int(len(merged.F)),
+                                   least_factor=float(np.exp(logf.min()))))
+        st.done[keep], st.starts[keep], area[keep] = merged, uv, area[i] + area[j]
+        least[keep], serial[keep] = float(np.exp(logf.min())), len(serial) + len(tried)
+        del st.done[drop], st.starts[drop], area[drop], serial[drop], least[drop]
+        border = chart_borders(st.done, cache)
+
+
+def _next_merge(border: np.ndarray, area: list, serial: list, tried: set) -> tuple[int, int] | None:
+    """The next (small chart, neighbour) pair to try, or None: charts by area, smallest first;
+    neighbours of the same label by shared border length, longest first, at most MERGE_TRIES each."""
+    if not len(border):
+        return None
+    for i in np.argsort(area, kind="stable"):
+        mine = border[border[:, 0] == i]
+        mine = mine[np.lexsort((mine[:, 1], -mine[:, 2]))]
+        for j in mine[:MERGE_TRIES, 1].astype(np.int64):
+            if _pair(serial[i], serial[j]) not in tried:
+                return int(i), int(j)
+    return None
+
+
+def _pair(a, b):
+    return (a, b) if a < b else (b, a)
+
+
+def _area(chart):
+    X = chart.V[chart.F]
+    return 0.5 * float(np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1).sum())
+
+
+def _boundary_global(charts, cache=None):
+    """Every chart's boundary half-edges: (chart, local a, local b, mesh a, mesh b) rows, and their
+    lengths. ``cache`` (a dict) keeps each chart's part between calls: keyed by id(chart), and the
+    entry holds the chart itself, so no other chart can take that id while the entry lives."""
+    from uvbake.mesh.topology import boundary_edges
+
+    cache = {} if cache is None else cache
+    rows, length = [], []
+    for k, c in enumerate(charts):                     # one iteration per chart
+        if id(c) not in cache:
+            b = boundary_edges(c.F, len(c.V))
+            cache[id(c)] = (c, np.column_stack([b, c.vertex_map[b]]), np.linalg.norm(c.V[b[:, 0]] - c.V[b[:, 1]], axis=1))
+        _, r, w = cache[id(c)]
+        rows.append(np.column_stack([np.full(len(r), k), r]))
+        length.append(w)
+    if not rows:
+        return np.zeros((0, 5), np.int64), np.zeros(0)
+    return np.concatenate(rows), np.concatenate(length)
+
+
+def chart_borders(charts: list[Chart], cache: dict | None = None) -> np.ndarray:
+    """(p,3) rows (chart i, chart j, shared border length) for every ordered pair of charts of the
+    same label that share mesh edges (i != j), sorted by (i, j). ``cache``: see :func:`_boundary_global`."""
+    h, length = _boundary_global(charts, cache)
+    if not len(h):
+        return np.zeros((0, 3))
+    n = int(h[:, 3:].max()) + 1
+    key = h[:, 3] * n + h[:, 4]
+    twin = h[:, 4] * n + h[:, 3]
+    o = np.argsort(key, kind="stable")
+    at = np.clip(np.searchsorted(key[o], twin), 0, len(o) - 1)
+    hit = key[o][at] == twin
+    i, j = h[hit, 0], h[o[at[hit]], 0]
+    label = np.array([c.label for c in charts])
+    ok = (i != j) & (label[i] == label[j])
+    i, j, length = i[ok], j[ok], length[hit][ok]
+    k = len(charts)
+    up, inv = np.unique(i * k + j, return_inverse=True)
+    return np.column_stack([up // k, up % k, np.bincount(inv, weights=length)])
+
+
+def join_charts(a: Chart, b: Chart, cache: dict | None = None) -> Chart | None:
+    """One chart of ``a`` and ``b`` (same label) joined along the mesh edges they share, or None when
+    the result is not a disk with holes (it would close a loop into a handle, or meet at a bowtie)."""
+    from uvbake.mesh.topology import topology
+
+    h = _boundary_global([a, b], cache)[0]
+    n = int(h[:, 3:].max()) + 1
+    ha, hb = h[h[:, 0] == 0], h[h[:, 0] == 1]
+    _, ia, ib = np.intersect1d(ha[:, 3] * n + ha[:, 4], hb[:, 4] * n + hb[:, 3], return_indices=True)
+    if not len(ia):
+        return None
+    na = len(a.V)
+    # a's edge (x, y) is b's (y, x): weld a's x with b's y and a's y with b's x
+    u = np.concatenate([ha[ia, 1], ha[ia, 2]])
+    v = np.concatenate([hb[ib, 2], hb[ib, 1]]) + na
+    g = sp.coo_matrix((np.ones(len(u)), (u, v)), shape=(na + len(b.V),) * 2)
+    nc, comp = connected_components(g, directed=False)
+    # a weld joining two vertices of one chart would pinch it (or collapse an edge): not a merge
+    if np.bincount(comp[:na], minlength=nc).max() > 1 or np.bincount(comp[na:], minlength=nc).max() > 1:
+        return None
+    _, first, new = np.unique(comp, return_index=True, return_inverse=True)
+    V = np.concatenate([a.V, b.V])[first]
+    vmap = np.concatenate([a.vertex_map, b.vertex_map])[first]
+    F = new[np.concatenate([a.F, b.F + na])]
+    # two disks with holes welded along whole edges, one vertex of each per weld: manifold, one fan
+    # per vertex, one piece; it is a disk with holes unless the weld closed it or made a handle
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    if len(np.unique(he[:, 0] * len(V) + he[:, 1])) < len(he):   # an edge used twice the same way
+        return None
+    topo = topology(F, len(V))
+    if topo.genus != 0 or topo.n_boundary_loops == 0:
+        return None
+    return Chart(V, F.astype(np.int64), vmap, np.concatenate([a.face_index, b.face_index]), a.label, a.name)
