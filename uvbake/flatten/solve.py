@@ -76,6 +76,10 @@ def _run_backend(energy: DistortionEnergy, start: np.ndarray, options: SolveOpti
             from uvbake.atlas.guarantee import determinant_step_limit
 
             step_limit = determinant_step_limit(energy, start)
+        if os.environ.get("UVBAKE_SOLVER") == "trust":
+            from uvbake.flatten.solvers.trust import trust_region
+            return trust_region(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter,
+                                linear_solver=options.linear_solver, callback=callback, step_limit=step_limit)
         return levenberg_marquardt(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter,
                                    linear_solver=options.linear_solver, callback=callback, step_limit=step_limit)
     return lbfgs(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter, callback=callback)
