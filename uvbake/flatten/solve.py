@@ -36,9 +36,10 @@ from uvbake.flatten.energy import DistortionEnergy, optimal_scale
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
-from uvbake.flatten.solvers.linalg import cholmod_available
+from uvbake.flatten.solvers.linalg import cholmod_available, make_solver
 from uvbake.flatten.solvers.lm import levenberg_marquardt
 from uvbake.flatten.solvers.result import ParamResult, SolveResult
+from uvbake.flatten.solvers.trust import trust_region
 from uvbake.flatten.starts import farthest_boundary_pair, initial_map
 from uvbake.mesh.arrays import unit_scale
 from uvbake.mesh.charts import Chart, check_chart
@@ -68,21 +69,21 @@ def _one_blas_thread() -> Iterator[None]:
 
 
 def _run_backend(energy: DistortionEnergy, start: np.ndarray, options: SolveOptions, max_iter: int,
-                 callback: Callback | None) -> tuple[np.ndarray, SolveResult]:
+                 callback: Callback | None, solver: Any = None) -> tuple[np.ndarray, SolveResult]:
+    """One backend run from ``start``; ``solver`` (the chart's, for the Hessian's pattern) is reused."""
     x0 = energy.to_vector(start)
-    if options.backend == "lm":
-        step_limit = None
-        if options.injective and np.all(energy.determinants(start) > 0):
-            from uvbake.atlas.guarantee import determinant_step_limit
+    if options.backend == "lbfgs":
+        return lbfgs(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter, callback=callback)
+    step_limit = None
+    if options.injective and np.all(energy.determinants(start) > 0):
+        from uvbake.atlas.guarantee import determinant_step_limit
 
-            step_limit = determinant_step_limit(energy, start)
-        if os.environ.get("UVBAKE_SOLVER") == "trust":
-            from uvbake.flatten.solvers.trust import trust_region
-            return trust_region(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter,
-                                linear_solver=options.linear_solver, callback=callback, step_limit=step_limit)
-        return levenberg_marquardt(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter,
-                                   linear_solver=options.linear_solver, callback=callback, step_limit=step_limit)
-    return lbfgs(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter, callback=callback)
+        step_limit = determinant_step_limit(energy, start)
+    common = dict(uv_fixed=start, tol=options.tol, max_iter=max_iter, linear_solver=options.linear_solver,
+                  callback=callback, step_limit=step_limit, solver=solver)
+    if options.step == "trust":
+        return trust_region(energy, x0, certificate=options.certificate, **common)
+    return levenberg_marquardt(energy, x0, **common)
 
 
 def _chart_arrays(chart: Chart | Sequence[Any], index: int = 0) -> tuple[np.ndarray, np.ndarray, str]:
@@ -138,25 +139,27 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     if alpha == 0.0 and np.linalg.norm(uv_start[p] - uv_start[q]) == 0:
         uv_start[q] += [np.linalg.norm(Vn[q] - Vn[p]), 0.0]
     f_init = energy.value(uv_start)          # at the target alpha, before any continuation
+    # one symbolic analysis per chart: the continuation's energy has the same pattern (no pins
+    # when alpha > 0.1), and the certificate factors the same Hessian
+    solver = make_solver(energy.empty_matrix(), method=options.linear_solver) if options.backend == "lm" else None
 
-    uv_start, stage = _continuation(Vn, F, energy, uv_start, options, callback)
+    uv_start, stage = _continuation(Vn, F, energy, uv_start, options, callback, solver)
     spent = stage.iterations if stage is not None else 0
-    x, info = _run_backend(energy, uv_start, options, max(options.max_iter - spent, 0), callback)
+    x, info = _run_backend(energy, uv_start, options, max(options.max_iter - spent, 0), callback, solver)
     iterations = info.iterations + spent
     evaluations = info.evaluations + (stage.evaluations if stage is not None else 0)
     history = info.history
     uvn = energy.to_uv(x, uv_start)
-    grad_norm = info.grad_norm
     if alpha == 0.0:
         # the pinned conformal map, scaled to the surface's own area. The pinned problem is linear,
         # so with the pins moved by the same scale its solution is the scaled map: a re-solve from
         # there only polishes the gradient, which the scaling multiplied by s.
         uvn = uvn * optimal_scale(energy, uvn)
-        x, polish = _run_backend(energy, uvn, options, options.max_iter, None)
+        x, info = _run_backend(energy, uvn, options, options.max_iter, None, solver)
         uvn = energy.to_uv(x, uvn)
-        grad_norm = polish.grad_norm
-        iterations += polish.iterations
-        history = np.concatenate([history, polish.history[1:]])
+        iterations += info.iterations
+        history = np.concatenate([history, info.history[1:]])
+    grad_norm = info.grad_norm
     extra: dict[str, Any] = {}
     if "linear_solver" in info.extra:
         extra["linear_solver"] = info.extra["linear_solver"]
@@ -166,7 +169,9 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
     det = energy.determinants(uvn)
-    cert = certify(energy, uvn, linear_solver=options.linear_solver) if options.certificate else None
+    cert = info.extra.get("certificate")      # the trust region's own second-order test, at uvn
+    if cert is None and options.certificate:
+        cert = certify(energy, uvn, linear_solver=options.linear_solver, solver=solver)
     return ParamResult(
         uv=uvn * unit,
         energy=float(DistortionEnergy.value(energy, uvn)),
@@ -190,20 +195,22 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
 
 
 def _continuation(Vn: np.ndarray, F: np.ndarray, energy: DistortionEnergy, start: np.ndarray,
-                  options: SolveOptions, callback: Callback | None) -> tuple[np.ndarray, SolveResult | None]:
+                  options: SolveOptions, callback: Callback | None,
+                  solver: Any = None) -> tuple[np.ndarray, SolveResult | None]:
     """An invalid start (flipped triangles, e.g. init="random") first goes to the nearly convex
     angle-dominated energy, then on to alpha (docs/decisions/continuation.md)."""
     if not (options.continuation and options.alpha > CONTINUATION_ALPHA
             and np.any(energy.determinants(start) <= 0)):
         return start, None
     e_c = DistortionEnergy(Vn, F, alpha=CONTINUATION_ALPHA)
-    x_c, info_c = _run_backend(e_c, start, options, options.max_iter, callback)
+    # the stage only has to reach the basin: no second-order test there
+    x_c, info_c = _run_backend(e_c, start, options.replace(certificate=False), options.max_iter, callback, solver)
     start = e_c.to_uv(x_c, start)
     return start * optimal_scale(energy, start), info_c
 
 
 def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.init,
-                 backend: str = DEFAULTS.backend, tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter,
+                 backend: str = DEFAULTS.backend, step: str = DEFAULTS.step, tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter,
                  seed: int = DEFAULTS.seed, uv0: np.ndarray | None = None, callback: Callback | None = None,
                  linear_solver: str = DEFAULTS.linear_solver, continuation: bool = DEFAULTS.continuation,
                  injective: bool = DEFAULTS.injective, certificate: bool = DEFAULTS.certificate,
@@ -220,11 +227,14 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         Start map. "tutte" needs one boundary loop; "random" is seeded by ``seed``; "isomap" and
         "laplacian" are the paper's Fig. 6 starts (:mod:`uvbake.flatten.starts`).
     backend : {"lm", "lbfgs"}
-        Levenberg-Marquardt with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
+        The second-order solver with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
+    step : {"trust", "damped"}
+        The "lm" backend's step: a trust-region Newton-CG step (default) or the paper's
+        Levenberg-Marquardt damping (see :class:`~uvbake.flatten.options.SolveOptions`).
     tol : float
         Stop when the scale-free gradient norm is under ``tol``.
     max_iter : int
-        Iteration cap (LM: factorisations, rejected steps included).
+        Iteration cap (factorisations and trial steps, rejected ones included).
     seed : int
         Seed of the random start.
     uv0 : (n,2) float array, optional
@@ -249,7 +259,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         ``uv (n,2)`` in the surface's length units, ``energy`` (the paper's F at uv), ``grad_norm``,
         ``iterations``, ``converged``, ``n_flipped``, ``history``, ``time_s``, ``status``.
     """
-    options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
+    options = SolveOptions(alpha=alpha, init=init, backend=backend, step=step, tol=tol, max_iter=max_iter, seed=seed,
                            linear_solver=linear_solver, continuation=continuation, injective=injective,
                            certificate=certificate)
     if callback is not None and not callable(callback):

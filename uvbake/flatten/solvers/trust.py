@@ -1,16 +1,22 @@
 """Trust-region Newton on the distortion energy: Steihaug-Toint truncated CG on the true Hessian,
 preconditioned by the Cholesky factor of the per-triangle PSD projection of that Hessian.
 
-Each iteration factors H+ + mu I once (H+ is H with every triangle's block projected onto the PSD
-cone, :meth:`DistortionEnergy.projected_hessian`, so the factorisation never fails and none is wasted),
-then runs preconditioned CG on the true model m(p) = g.p + p.H p / 2 inside the trust region
-||p||_M <= Delta (M = H+ + mu I): CG stops at the boundary on negative curvature (the indefinite area
-term is followed, not damped away), at the boundary when the iterate leaves the region, or when the
-residual is below eta ||g|| with the forcing term eta = min(ETA_MAX, sqrt(||g||)) (superlinear
-convergence). Where H is positive semidefinite per triangle H+ = H and CG ends after one step: the
-Newton step. Nocedal & Wright, Numerical Optimization, 2nd ed., Alg. 4.1 and 7.2; Steihaug (1983).
-The gain ratio uses the term-by-term change of F (DistortionEnergy.change), as LM does.
-Measurements: docs/decisions/solver.md.
+Each iteration factors M = H+ + mu I once (H+ is H with every triangle's block projected onto the PSD
+cone, :meth:`DistortionEnergy.projected_hessian`, so the factorisation does not fail and none is
+wasted), then runs preconditioned CG on the true model m(p) = g.p + p.H p / 2 inside the trust region
+||p||_M <= Delta: CG stops at the boundary on negative curvature (the indefinite area term is
+followed, not damped away), at the boundary when the iterate leaves the region, or when the residual
+is below eta ||g|| with the forcing term eta = min(ETA_MAX, sqrt(||g||)) (superlinear convergence).
+Where every triangle's block is positive semidefinite H+ = H and CG ends after one step: the Newton
+step. A trial step that fails the gain test is halved along its direction (at most BACKTRACK times,
+evaluations only) before the radius shrinks. Nocedal & Wright, Numerical Optimization, 2nd ed.,
+Alg. 4.1 and 7.2; Steihaug (1983); Nocedal & Yuan (1998) for backtracking inside a trust region.
+
+Iterations: factorisations plus trial steps that reuse a factorisation after a rejection, plus the
+factorisations of the second-order test. At a stationary point the certificate
+(:func:`~uvbake.flatten.solvers.certificate.certify`, on the same symbolic analysis) is the
+second-order test: a negative lambda_min is a saddle, left along its eigenvector. Measurements and
+the routes compared: docs/decisions/solver.md.
 """
 
 from __future__ import annotations
@@ -20,15 +26,17 @@ import time
 import numpy as np
 
 from uvbake.cancel import check_cancelled
+from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
 from uvbake.flatten.solvers.result import SolveResult, Status
 
 ETA_MAX = 0.1          # loosest relative CG residual (far from the minimum)
-MAX_CG = 50            # CG iterations per outer iteration
-SHIFT = 1e-8           # mu = SHIFT * max diag H: the preconditioner's regularisation (gauge directions)
+MAX_CG = 50            # CG iterations per trial step
+SHIFT = 1e-8           # mu = SHIFT * max diag H: regularises M on the gauge directions
 SHRINK, GROW = 0.25, 2.0
 BACKTRACK = 4          # halvings of a failed trial step before the radius shrinks
-ACCEPT = 1e-4          # accept a step when actual / predicted decrease exceeds it
+ACCEPT = 1e-4          # a step is taken when actual / predicted decrease exceeds it
+MAX_ESCAPES = 20       # saddle escapes per solve
 
 
 def _boundary(zMz, zMd, dMd, delta):
@@ -38,30 +46,30 @@ def _boundary(zMz, zMd, dMd, delta):
 
 
 def steihaug(H, g, msolve, delta, eta, max_cg=MAX_CG):
-    """Approximately minimise g.p + p.H p / 2 over ||p||_M <= delta by preconditioned CG.
+    """Approximately minimise g.p + p.H p / 2 over ||p||_M <= delta by CG preconditioned with M
+    (``msolve(r) = M^-1 r``); the M-norms of the iterates are updated by the recurrences of Conn,
+    Gould and Toint (Trust-Region Methods, 2000, sec. 7.5).
 
-    Returns (p, on_boundary, cg_iterations, negative_curvature)."""
+    Returns (p, on_boundary, cg_iterations)."""
     z = np.zeros_like(g)
     r = g.copy()
     y = msolve(r)
     d = -y
     ry = float(r @ y)
     zMz, zMd, dMd = 0.0, 0.0, ry
-    gnorm = float(np.linalg.norm(g))
+    stop = eta * float(np.linalg.norm(g))
     for j in range(1, max_cg + 1):
         Hd = H @ d
         dHd = float(d @ Hd)
-        if dHd <= 0:
-            return z + _boundary(zMz, zMd, dMd, delta) * d, True, j, True
-        a = ry / dHd
+        a = ry / dHd if dHd > 0 else np.inf
         zMz_new = zMz + 2.0 * a * zMd + a * a * dMd
-        if zMz_new >= delta * delta:
-            return z + _boundary(zMz, zMd, dMd, delta) * d, True, j, False
+        if dHd <= 0 or zMz_new >= delta * delta:      # negative curvature, or leaving the region
+            return z + _boundary(zMz, zMd, dMd, delta) * d, True, j
         z = z + a * d
         zMz = zMz_new
         r = r + a * Hd
-        if np.linalg.norm(r) <= eta * gnorm:
-            return z, False, j, False
+        if np.linalg.norm(r) <= stop:
+            return z, False, j
         y = msolve(r)
         ry_new = float(r @ y)
         beta = ry_new / ry
@@ -69,97 +77,143 @@ def steihaug(H, g, msolve, delta, eta, max_cg=MAX_CG):
         zMd = beta * (zMd + a * dMd)
         dMd = ry + beta * beta * dMd
         d = -y + beta * d
-    return z, False, max_cg, False
+    return z, False, max_cg
+
+
+class _State:
+    """The iterate and what is known at it."""
+
+    def __init__(self, energy, x, uv_fixed):
+        self.energy, self.uv_fixed = energy, uv_fixed
+        self.H = energy.empty_matrix()
+        self.Hp = energy.empty_matrix()
+        self.move(x)
+
+    def move(self, x):
+        self.x = x
+        self.uv = self.energy.to_uv(x, self.uv_fixed)
+        self.f, self.g, _ = self.energy.evaluate(self.uv, out=self.H)
+        self.gnorm = float(np.linalg.norm(self.g))
+
+
+def _trial(state, p, zero_uv):
+    """The largest of p, p/2, ..., p/2^BACKTRACK that passes the gain test, as
+    (t, rho, evaluations); t = 0 when none does."""
+    gp, pHp = float(state.g @ p), float(p @ (state.H @ p))
+    t, rho = 1.0, -1.0
+    for k in range(BACKTRACK + 1):
+        pred = -(t * gp + 0.5 * t * t * pHp)
+        actual = -state.energy.change(state.uv, state.energy.to_uv(t * p, zero_uv))
+        rho = actual / pred if pred > 0 else -1.0
+        if rho > ACCEPT and actual > 0:
+            return t, rho, k + 1
+        t *= 0.5
+    return 0.0, rho, BACKTRACK + 1
+
+
+def _escape(state, cert, step_limit, zero_uv):
+    """A point lower than ``state`` along the certificate's negative-curvature eigenvector, or None."""
+    v = cert.vector
+    if v is None:
+        return None
+    for t in (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125):
+        for sign in (1.0, -1.0):
+            step = sign * t * v
+            if step_limit is not None and step_limit(state.x, step) < 1.0:
+                continue
+            if state.energy.change(state.uv, state.energy.to_uv(step, zero_uv)) < 0:
+                return state.x + step
+    return None
 
 
 def trust_region(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, linear_solver="auto", callback=None,
-                 step_limit=None, solver=None):
-    """Minimise ``energy`` from the free unknowns ``x0``; the arguments and result of
-    :func:`uvbake.flatten.solvers.lm.levenberg_marquardt` (iterations are factorisations)."""
+                 step_limit=None, solver=None, certificate=True):
+    """Minimise ``energy`` (a :class:`uvbake.flatten.energy.DistortionEnergy`) from the free unknowns ``x0``.
+
+    The arguments and result of :func:`uvbake.flatten.solvers.lm.levenberg_marquardt`, and:
+
+    solver : optional
+        A solver of :func:`~uvbake.flatten.solvers.linalg.make_solver` for the Hessian's pattern
+        (its symbolic analysis is reused; the caller may reuse it afterwards).
+    certificate : bool
+        Run the second-order test at the stationary point (and leave saddles); its
+        :class:`~uvbake.flatten.solvers.certificate.Certificate` is ``extra["certificate"]``.
+
+    ``extra`` also holds the CG iterations and the saddle escapes.
+    """
     t0 = time.perf_counter()
-    x = np.array(x0, dtype=np.float64)
-    H = energy.empty_matrix()
-    Hp = energy.empty_matrix()
-    f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
-    solver = solver or make_solver(H, method=linear_solver)
+    s = _State(energy, np.array(x0, dtype=np.float64), uv_fixed)
+    solver = solver or make_solver(s.H, method=linear_solver)
     diag = energy.diagonal_slots
-    hmax = float(np.max(np.abs(H.data[diag]))) if len(diag) else 1.0
+    hmax = float(np.max(np.abs(s.H.data[diag]))) if len(diag) else 1.0
     mu = SHIFT * max(hmax, 1e-300)
-    gnorm = float(np.linalg.norm(g))
     delta = None
-    history = [f]
+    history = [s.f]
     zero_uv = np.zeros_like(uv_fixed)
-    it, n_eval, n_cg = 0, 1, 0
-    stop = Status.MAX_ITER if np.isfinite(f) else Status.NON_FINITE_START
-    fresh = True                                   # H+ must be refactored (x moved)
+    it, n_eval, n_cg, escapes, cert = 0, 1, 0, 0, None
+    stop = Status.MAX_ITER if np.isfinite(s.f) else Status.NON_FINITE_START
+    factored = False                               # M is factored at the current iterate
     while it < max_iter and stop == Status.MAX_ITER:
-        check_cancelled()
-        if gnorm < tol:
+        check_cancelled()                          # SIGINT/SIGTERM: stop within one iteration
+        if s.gnorm < tol:
+            cert = None
+            if certificate and escapes < MAX_ESCAPES:
+                cert = certify(energy, s.uv, H=s.H, solver=solver)
+                it += cert.factorisations
+                history.extend([s.f] * cert.factorisations)
+                factored = False
+                x_new = None if cert.is_local_minimum else _escape(s, cert, step_limit, zero_uv)
+                if x_new is not None:
+                    escapes += 1
+                    s.move(x_new)
+                    history[-1] = s.f
+                    continue
             stop = Status.CONVERGED
             break
-        if fresh:
-            energy.projected_hessian(energy.to_uv(x, uv_fixed), H, out=Hp)
+        if not factored:
+            energy.projected_hessian(s.uv, s.H, out=s.Hp)
+            it += 1
             try:
-                solver.factor(Hp, mu)
+                solver.factor(s.Hp, mu)
             except NotPositiveDefinite:            # rounding on a nearly singular H+: more shift
                 mu *= 100.0
-                it += 1
+                history.append(s.f)
                 continue
-            it += 1
-            fresh = False
-        if delta is None:                          # first radius: the full preconditioned Newton step
-            p0 = solver.solve(g)
-            delta = float(np.sqrt(max(g @ p0, 0.0))) or 1.0
-        eta = min(ETA_MAX, np.sqrt(gnorm))
-
-        def pHp_m(v):
-            return float(v @ (Hp @ v)) + mu * float(v @ v)
-
-        p, boundary, j, _ = steihaug(H, g, solver.solve, delta, eta)
+            factored = True
+        else:
+            it += 1                                # a new trial step on the same factorisation
+        if delta is None:                          # first radius: the preconditioned steepest descent's
+            delta = float(np.sqrt(max(s.g @ solver.solve(s.g), 0.0))) or 1.0
+        p, boundary, j = steihaug(s.H, s.g, solver.solve, delta, min(ETA_MAX, np.sqrt(s.gnorm)))
         n_cg += j
         if step_limit is not None:
-            p = p * step_limit(x, p)
-        uv = energy.to_uv(x, uv_fixed)
-        gp, pHp = float(g @ p), float(p @ (H @ p))
-        t, rho, actual = 1.0, -1.0, 0.0
-        for _ in range(BACKTRACK + 1):
-            # the trial step t p, halved (Armijo on the model's decrease) while it fails
-            pred = -(t * gp + 0.5 * t * t * pHp)
-            actual = -energy.change(uv, energy.to_uv(t * p, zero_uv))
-            n_eval += 1
-            rho = actual / pred if pred > 0 else -1.0
-            if (rho > ACCEPT and actual > 0) or not BACKTRACK:
-                break
-            t *= 0.5
-        accepted = bool(rho > ACCEPT and actual > 0)
-        if t < 1.0 and accepted:
-            delta = t * float(np.sqrt(pHp_m(p)))
+            p = p * step_limit(s.x, p)
+        t, rho, k = _trial(s, p, zero_uv)
+        n_eval += k
+        accepted = t > 0
+        if accepted and t < 1.0:                   # backtracked: the radius of the step taken
+            delta = t * float(np.sqrt(p @ (s.Hp @ p) + mu * (p @ p)))
         elif rho < 0.25:
             delta *= SHRINK
         elif rho > 0.75 and boundary:
             delta *= GROW
-        p = t * p
-        x_new = x + p
         if accepted:
-            x = x_new
-            f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
-            gnorm = float(np.linalg.norm(g))
-            fresh = True
-            if np.linalg.norm(p) <= 1e-15 * (1.0 + np.linalg.norm(x)):
+            x_old = s.x
+            s.move(s.x + t * p)
+            n_eval += 1
+            factored = False
+            if np.linalg.norm(s.x - x_old) <= 1e-15 * (1.0 + np.linalg.norm(s.x)):
                 stop = Status.STEP_TOO_SMALL
-        elif delta < 1e-15 * (1.0 + np.linalg.norm(x)):
+        elif delta < 1e-15 * (1.0 + np.linalg.norm(s.x)):
             stop = Status.STEP_TOO_SMALL
-        else:
-            # a rejected step keeps the factorisation: the next try costs CG only, counted as an iteration
-            it += 1
-        history.append(f)
-        if callback is not None and callback(dict(iteration=it, energy=f, grad_norm=gnorm, damping=delta,
-                                                  accepted=accepted, reason=f"gain {rho:.3g} cg {j} bnd {boundary}")):
+        history.append(s.f)
+        if callback is not None and callback(dict(iteration=it, energy=s.f, grad_norm=s.gnorm, damping=delta,
+                                                  accepted=accepted, reason=f"gain {rho:.3g}, {j} CG")):
             stop = Status.CALLBACK if stop == Status.MAX_ITER else stop
-            break
-    if gnorm < tol:
+    if s.gnorm < tol and stop == Status.MAX_ITER:
         stop = Status.CONVERGED
-    return x, SolveResult(energy=float(f), grad_norm=gnorm, iterations=it, evaluations=n_eval,
-                          converged=bool(gnorm < tol), history=np.asarray(history), status=stop,
-                          solve_time_s=time.perf_counter() - t0,
-                          extra=dict(linear_solver=solver.name, cg_iterations=n_cg))
+    return s.x, SolveResult(energy=float(s.f), grad_norm=s.gnorm, iterations=it, evaluations=n_eval,
+                            converged=bool(s.gnorm < tol), history=np.asarray(history), status=stop,
+                            solve_time_s=time.perf_counter() - t0,
+                            extra=dict(linear_solver=solver.name, cg_iterations=n_cg, saddle_escapes=escapes,
+                                       certificate=cert))
