@@ -126,6 +126,10 @@ class DistortionEnergy:
                                + np.einsum("mi,mj->mij", self._g2, self._g2))
         # Hess(det): u-v block a_k b_l - b_k a_l and its transpose
         Huv = np.einsum("mk,ml->mkl", self.a, self.b) - np.einsum("mk,ml->mkl", self.b, self.a)
+        # A = QQ^T x_t: the Jacobian's entries (A11, A12, A21, A22) from the local unknowns
+        self._QQ = np.zeros((m, 6, 4))
+        self._QQ[:, :3, 0], self._QQ[:, :3, 1] = self.a, self.b
+        self._QQ[:, 3:, 2], self._QQ[:, 3:, 3] = self.a, self.b
         self._H_det = np.zeros((m, 6, 6))
         self._H_det[:, :3, 3:] = Huv
         self._H_det[:, 3:, :3] = np.transpose(Huv, (0, 2, 1))
@@ -141,6 +145,10 @@ class DistortionEnergy:
         uniq, inverse = np.unique(key, return_inverse=True)
         self._hkeep = keep
         self._hslot = inverse
+        self._all_free = bool(keep.all())
+        slot_full = np.full(len(keep), -1, dtype=np.int64)
+        slot_full[keep] = inverse
+        self._hslot_full = slot_full.reshape(len(fi), 36)                     # (m,36), -1 where fixed
         self._nnz = len(uniq)
         self._indices = (uniq % N).astype(np.int32)
         ucol = uniq // N
@@ -225,9 +233,10 @@ class DistortionEnergy:
         return f, g, H
 
     def projection_correction(self, uv):
-        """The PSD part that lifts each triangle's Hessian block to its projection onto the positive
-        semidefinite cone: per-triangle weights e (m,4) >= 0 and directions U (m,4,6), with
-        H_t^+ = H_t + sum_k e_k U_k U_k^T (Teran et al. 2005's clamping, in closed form).
+        """The PSD part that lifts each triangle's Hessian block h_t (in the Jacobian's coordinates
+        A11, A12, A21, A22) to its projection onto the positive semidefinite cone: weights e (m,4) >= 0
+        and unit eigenvectors vec (m,4,4) (columns), h_t^+ = h_t + sum_k e_k vec_k vec_k^T (the clamping
+        of Teran et al. 2005, in closed form; H_t = QQ h_t QQ^T, so H_t^+ is PSD as well).
 
         In the Jacobian's 4-space, with the orthonormal conformal pair c1 = (1,0,0,1)/sqrt2,
         c2 = (0,1,-1,0)/sqrt2 and anticonformal pair n1 = (1,0,0,-1)/sqrt2, n2 = (0,1,1,0)/sqrt2 and
@@ -254,25 +263,25 @@ class DistortionEnergy:
         theta = 0.5 * np.arctan2(2.0 * y, x - z)
         mean, rad = 0.5 * (x + z), np.hypot(0.5 * (x - z), y)
         ct, st = np.cos(theta), np.sin(theta)
-        # eigenpairs as (lambda, conformal coords (2,m), anticonformal coords (2,m))
         zero = np.zeros((2, len(det)))
-        pairs = [(mean + rad, ct * ph, st * qh), (mean - rad, -st * ph, ct * qh),
-                 (dc, np.stack([-ph[1], ph[0]]), zero), (da, zero, np.stack([-qh[1], qh[0]]))]
-        e = np.empty((len(det), 4))
-        U = np.empty((len(det), 4, 6))
-        for k, (lam, cc, nn) in enumerate(pairs):
-            e[:, k] = np.maximum(-lam, 0.0)
-            v = r * np.stack([cc[0] + nn[0], cc[1] + nn[1], -cc[1] + nn[1], cc[0] - nn[0]])   # (4,m) in A
-            U[:, k, :3] = self.a * v[0][:, None] + self.b * v[1][:, None]
-            U[:, k, 3:] = self.a * v[2][:, None] + self.b * v[3][:, None]
-        return e, U
+        # the four eigenpairs: eigenvalue, coordinates on (c1, c2) and on (n1, n2)
+        lam = np.stack([mean + rad, mean - rad, dc, da], axis=1)                     # (m,4)
+        cc = np.stack([ct * ph, -st * ph, np.stack([-ph[1], ph[0]]), zero], axis=2)  # (2,m,4)
+        nn = np.stack([st * qh, ct * qh, zero, np.stack([-qh[1], qh[0]])], axis=2)
+        # in the Jacobian's coordinates (A11, A12, A21, A22): (m,4 entries,4 eigenpairs)
+        vec = r * np.stack([cc[0] + nn[0], cc[1] + nn[1], nn[1] - cc[1], cc[0] - nn[0]], axis=1)
+        return np.maximum(-lam, 0.0), vec
 
     def projected_hessian(self, uv, H, out=None):
-        """The Hessian with every triangle's block projected onto the PSD cone (``H`` the true one
-        at ``uv``, same pattern; ``out`` refilled in place if given): positive semidefinite always."""
-        e, U = self.projection_correction(uv)
-        blocks = np.einsum("mk,mki,mkj->mij", e, U, U)
-        data = H.data + np.bincount(self._hslot, weights=blocks.ravel()[self._hkeep], minlength=self._nnz)
+        """The Hessian with every triangle's block projected onto the PSD cone in the Jacobian's
+        coordinates (``H`` the true one at ``uv``, same pattern; ``out`` refilled in place if given):
+        positive semidefinite always, and equal to H on triangles whose block already is."""
+        e, vec = self.projection_correction(uv)
+        rows = np.flatnonzero(e.any(axis=1))
+        data = H.data.copy()
+        if len(rows):
+            W = self._QQ[rows] @ (vec[rows] * np.sqrt(e[rows])[:, None, :])              # (s,6,4)
+            data += self._scatter_blocks(W @ np.transpose(W, (0, 2, 1)), rows)
         if out is None:
             out = self.empty_matrix()
         out.data[:] = data
@@ -289,11 +298,19 @@ class DistortionEnergy:
     def evaluate(self, uv: np.ndarray, out: sp.csc_matrix | None = None) -> tuple[float, np.ndarray, sp.csc_matrix]:
         """F, gradient and Hessian (CSC, fixed pattern; ``out`` is refilled in place if given)."""
         f, g, H = self._local(uv, hessian=True)
-        data = np.bincount(self._hslot, weights=H.ravel()[self._hkeep], minlength=self._nnz)
+        data = self._scatter_blocks(H)
         if out is None:
             out = self.empty_matrix()
         out.data[:] = data
         return f, self._scatter_gradient(g), out
+
+    def _scatter_blocks(self, blocks, rows=None):
+        """Sum per-triangle 6x6 blocks (of all triangles, or of the triangles ``rows``) into the CSC data."""
+        if rows is None and self._all_free:
+            return np.bincount(self._hslot, weights=blocks.ravel(), minlength=self._nnz)
+        slots = (self._hslot_full if rows is None else self._hslot_full[rows]).ravel()
+        keep = slots >= 0
+        return np.bincount(slots[keep], weights=blocks.ravel()[keep], minlength=self._nnz)
 
     def _scatter_gradient(self, g):
         return np.bincount(self._gslot, weights=g.ravel()[self._gkeep], minlength=self.n_free)

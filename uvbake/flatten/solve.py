@@ -95,7 +95,7 @@ def _chart_arrays(chart: Chart | Sequence[Any], index: int = 0) -> tuple[np.ndar
 
 
 def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, start: np.ndarray | None = None,
-                callback: Callback | None = None) -> ParamResult:
+                callback: Callback | None = None, checked: bool = False) -> ParamResult:
     """Flatten one chart: the work unit any executor runs (a picklable function of picklable data).
 
     Parameters
@@ -106,13 +106,17 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         A start map of your own (overrides ``options.init``), in the surface's units.
     callback : callable, optional
         As in :func:`parameterize`.
+    checked : bool
+        The chart is known to be a disk with holes (:func:`uvbake.mesh.charts.check_chart` passed,
+        as for the pipeline's charts): skip the check.
 
     Does not touch BLAS thread limits (see :func:`limit_blas_threads`).
     """
     t0 = time.perf_counter()
     check_cancelled()
     V, F, name = _chart_arrays(chart)
-    check_chart(V, F, name=name)
+    if not checked:
+        check_chart(V, F, name=name)
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     Vn, unit = unit_scale(V, F)
@@ -271,7 +275,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
 def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int | None = None,
                         progress: Progress | None = None, starts: Sequence[np.ndarray | None] | None = None,
                         executor: Executor | None = None, options: SolveOptions | None = None,
-                        callback: Callback | None = None, **option_values: Any) -> list[ParamResult]:
+                        callback: Callback | None = None, checked: bool = False,
+                        **option_values: Any) -> list[ParamResult]:
     """Parameterize several charts independently, in parallel.
 
     Parameters
@@ -290,6 +295,8 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
         The solve options; or give them as keywords (alpha, init, backend, tol, max_iter, seed, ...).
     callback : callable, optional
         Passed to every solve (see :func:`parameterize`).
+    checked : bool
+        Every chart already passed :func:`uvbake.mesh.charts.check_chart` (see :func:`solve_chart`).
 
     Returns
     -------
@@ -300,11 +307,9 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
     elif option_values:
         options = options.replace(**option_values)
     items = [_chart_arrays(c, i) for i, c in enumerate(charts)]
-    if not items:
-        return []
     if workers is not None and (not _whole(workers) or workers < 1):
         raise InputError(f"workers={workers!r} must be a positive integer (threads solving charts)")
-    workers = int(workers or min(os.cpu_count() or 1, len(items)))
+    workers = int(workers or min(os.cpu_count() or 1, max(len(items), 1)))
     results: list[ParamResult | None] = [None] * len(items)
     done = 0
 
@@ -315,27 +320,32 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
         if progress:
             progress(done, len(items), res)
 
-    def start_of(i: int) -> np.ndarray | None:
-        return None if starts is None else starts[i]
-
+    jobs = [(i, (items[i], options, None if starts is None else starts[i], callback, checked))
+            for i in range(len(items))]
     # BLAS pools are process-wide: limit them once here, around every solve of this process
     with _one_blas_thread():
-        if executor is None and (workers <= 1 or len(items) == 1):
-            for i in range(len(items)):
-                finish(i, solve_chart(items[i], options, start_of(i), callback))
+        if executor is None and (workers <= 1 or len(items) <= 1):
+            for i, args in jobs:
+                finish(i, solve_chart(*args))
         else:
-            with contextlib.ExitStack() as stack:
-                pool = executor or stack.enter_context(ThreadPoolExecutor(max_workers=workers))
-                # largest charts first so the pool stays busy
-                order = sorted(range(len(items)), key=lambda i: -len(items[i][1]))
-                futures = {pool.submit(solve_chart, items[i], options, start_of(i), callback): i for i in order}
-                try:
-                    for fut in as_completed(futures):
-                        finish(futures[fut], fut.result())
-                except BaseException:
-                    # a chart failed or the run was stopped (a callback raised, Ctrl-C): charts not
-                    # yet started are dropped instead of solved before the error reaches the caller
-                    for fut in futures:
-                        fut.cancel()
-                    raise
+            # largest charts first so the pool stays busy
+            jobs.sort(key=lambda job: -len(items[job[0]][1]))
+            _run_pool(jobs, executor, workers, finish)
     return [r for r in results if r is not None]
+
+
+def _run_pool(jobs: list[tuple[int, tuple[Any, ...]]], executor: Executor | None, workers: int,
+              finish: Callable[[int, ParamResult], None]) -> None:
+    """:func:`solve_chart` of every job on ``executor`` (default a pool of ``workers`` threads)."""
+    with contextlib.ExitStack() as stack:
+        pool = executor or stack.enter_context(ThreadPoolExecutor(max_workers=workers))
+        futures = {pool.submit(solve_chart, *args): i for i, args in jobs}
+        try:
+            for fut in as_completed(futures):
+                finish(futures[fut], fut.result())
+        except BaseException:
+            # a chart failed or the run was stopped (a callback raised, Ctrl-C): charts not
+            # yet started are dropped instead of solved before the error reaches the caller
+            for fut in futures:
+                fut.cancel()
+            raise

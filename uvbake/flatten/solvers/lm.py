@@ -93,10 +93,7 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
         step = _step(energy, s.x, s.g, s.H, lam, s.solver, uv_fixed, s.zero_uv, step_limit)
         accepted = s.take(step)
         lam, nu, lam_indef = _damping(lam, nu, lam_indef, step, accepted, lam_min)
-        if accepted and np.linalg.norm(step.delta) <= 1e-15 * (1.0 + np.linalg.norm(s.x)):
-            stop = Status.STEP_TOO_SMALL
-        elif not accepted and lam > 1e30 * max(s.hmax, 1.0):
-            stop = Status.DAMPING_DIVERGED
+        stop = s.stop_after(step, accepted, lam)
         if s.gnorm < tol and s.escapes < MAX_ESCAPES and stop == Status.MAX_ITER:
             shift = s.second_order_test()
             lam, nu = (max(lam, shift), 2.0) if shift else (lam, nu)
@@ -160,6 +157,14 @@ class _LMState:
         self.f, self.g, _ = self.energy.evaluate(self.energy.to_uv(x, self.uv_fixed), out=self.H)
         self.n_eval += 1
         self.gnorm = float(np.linalg.norm(self.g))
+
+    def stop_after(self, step, accepted, lam):
+        """The status after an iteration: MAX_ITER to go on."""
+        if accepted and np.linalg.norm(step.delta) <= 1e-15 * (1.0 + np.linalg.norm(self.x)):
+            return Status.STEP_TOO_SMALL
+        if not accepted and lam > 1e30 * max(self.hmax, 1.0):
+            return Status.DAMPING_DIVERGED
+        return Status.MAX_ITER
 
     def second_order_test(self):
         """At a stationary point: leave it along negative curvature if it is a saddle. Returns the

@@ -81,19 +81,82 @@ def steihaug(H, g, msolve, delta, eta, max_cg=MAX_CG):
 
 
 class _State:
-    """The iterate and what is known at it."""
+    """The iterate, what is known at it, the factorisation of M there, and the counters."""
 
-    def __init__(self, energy, x, uv_fixed):
-        self.energy, self.uv_fixed = energy, uv_fixed
+    def __init__(self, energy, x, uv_fixed, solver, linear_solver, step_limit):
+        self.energy, self.uv_fixed, self.step_limit = energy, uv_fixed, step_limit
+        self.zero_uv = np.zeros_like(uv_fixed)
         self.H = energy.empty_matrix()
         self.Hp = energy.empty_matrix()
+        self.it, self.n_eval, self.n_cg, self.escapes = 0, 0, 0, 0
+        self.history, self.cert = [], None
         self.move(x)
+        self.history.append(self.f)
+        self.solver = solver or make_solver(self.H, method=linear_solver)
+        diag = energy.diagonal_slots
+        self.mu = SHIFT * max(float(np.max(np.abs(self.H.data[diag]))) if len(diag) else 1.0, 1e-300)
 
     def move(self, x):
         self.x = x
         self.uv = self.energy.to_uv(x, self.uv_fixed)
         self.f, self.g, _ = self.energy.evaluate(self.uv, out=self.H)
+        self.n_eval += 1
         self.gnorm = float(np.linalg.norm(self.g))
+        self.factored = False                      # M must be factored at the new iterate
+        self.cert = None
+
+    def factor(self):
+        """Factor M = H+ + mu I here (one iteration); False when rounding made it fail (mu raised)."""
+        self.energy.projected_hessian(self.uv, self.H, out=self.Hp)
+        self.it += 1
+        try:
+            self.solver.factor(self.Hp, self.mu)
+        except NotPositiveDefinite:                # rounding on a nearly singular H+: more shift
+            self.mu *= 100.0
+            self.history.append(self.f)
+            return False
+        self.factored = True
+        return True
+
+    def advance(self, step, delta):
+        """Take ``step`` (zero when the trial failed); the status: MAX_ITER to go on."""
+        x_old = self.x
+        if np.any(step):
+            self.move(self.x + step)
+        self.history.append(self.f)
+        moved = float(np.linalg.norm(self.x - x_old))
+        small = 1e-15 * (1.0 + np.linalg.norm(self.x))
+        if (moved > 0 and moved <= small) or (moved == 0 and delta < small):
+            return Status.STEP_TOO_SMALL
+        return Status.MAX_ITER
+
+    def m_norm(self, p):
+        return float(np.sqrt(p @ (self.Hp @ p) + self.mu * (p @ p)))
+
+    def second_order(self):
+        """The certificate here; True when it found a saddle and moved off it."""
+        self.cert = certify(self.energy, self.uv, H=self.H, solver=self.solver)
+        self.it += self.cert.factorisations
+        self.history.extend([self.f] * self.cert.factorisations)
+        self.factored = False
+        x_new = None if self.cert.is_local_minimum else _escape(self, self.cert, self.step_limit, self.zero_uv)
+        if x_new is None:
+            return False
+        self.escapes += 1
+        self.move(x_new)
+        self.history[-1] = self.f
+        return True
+
+
+def _radius(delta, t, rho, boundary, m_norm):
+    """The trust radius after a trial step (``t`` the fraction of the step taken, 0 if none)."""
+    if 0 < t < 1.0:                                # backtracked: the radius of the step taken
+        return t * m_norm
+    if rho < 0.25:
+        return delta * SHRINK
+    if rho > 0.75 and boundary:
+        return delta * GROW
+    return delta
 
 
 def _trial(state, p, zero_uv):
@@ -142,78 +205,37 @@ def trust_region(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, linear_solver=
     ``extra`` also holds the CG iterations and the saddle escapes.
     """
     t0 = time.perf_counter()
-    s = _State(energy, np.array(x0, dtype=np.float64), uv_fixed)
-    solver = solver or make_solver(s.H, method=linear_solver)
-    diag = energy.diagonal_slots
-    hmax = float(np.max(np.abs(s.H.data[diag]))) if len(diag) else 1.0
-    mu = SHIFT * max(hmax, 1e-300)
+    s = _State(energy, np.array(x0, dtype=np.float64), uv_fixed, solver, linear_solver, step_limit)
     delta = None
-    history = [s.f]
-    zero_uv = np.zeros_like(uv_fixed)
-    it, n_eval, n_cg, escapes, cert = 0, 1, 0, 0, None
     stop = Status.MAX_ITER if np.isfinite(s.f) else Status.NON_FINITE_START
-    factored = False                               # M is factored at the current iterate
-    while it < max_iter and stop == Status.MAX_ITER:
+    while s.it < max_iter and stop == Status.MAX_ITER:
         check_cancelled()                          # SIGINT/SIGTERM: stop within one iteration
         if s.gnorm < tol:
-            cert = None
-            if certificate and escapes < MAX_ESCAPES:
-                cert = certify(energy, s.uv, H=s.H, solver=solver)
-                it += cert.factorisations
-                history.extend([s.f] * cert.factorisations)
-                factored = False
-                x_new = None if cert.is_local_minimum else _escape(s, cert, step_limit, zero_uv)
-                if x_new is not None:
-                    escapes += 1
-                    s.move(x_new)
-                    history[-1] = s.f
-                    continue
+            if certificate and s.escapes < MAX_ESCAPES and s.second_order():
+                continue
             stop = Status.CONVERGED
             break
-        if not factored:
-            energy.projected_hessian(s.uv, s.H, out=s.Hp)
-            it += 1
-            try:
-                solver.factor(s.Hp, mu)
-            except NotPositiveDefinite:            # rounding on a nearly singular H+: more shift
-                mu *= 100.0
-                history.append(s.f)
-                continue
-            factored = True
-        else:
-            it += 1                                # a new trial step on the same factorisation
+        if s.factored:
+            s.it += 1                              # a new trial step on the same factorisation
+        elif not s.factor():
+            continue
         if delta is None:                          # first radius: the preconditioned steepest descent's
-            delta = float(np.sqrt(max(s.g @ solver.solve(s.g), 0.0))) or 1.0
-        p, boundary, j = steihaug(s.H, s.g, solver.solve, delta, min(ETA_MAX, np.sqrt(s.gnorm)))
-        n_cg += j
+            delta = float(np.sqrt(max(s.g @ s.solver.solve(s.g), 0.0))) or 1.0
+        p, boundary, j = steihaug(s.H, s.g, s.solver.solve, delta, min(ETA_MAX, np.sqrt(s.gnorm)))
+        s.n_cg += j
         if step_limit is not None:
             p = p * step_limit(s.x, p)
-        t, rho, k = _trial(s, p, zero_uv)
-        n_eval += k
-        accepted = t > 0
-        if accepted and t < 1.0:                   # backtracked: the radius of the step taken
-            delta = t * float(np.sqrt(p @ (s.Hp @ p) + mu * (p @ p)))
-        elif rho < 0.25:
-            delta *= SHRINK
-        elif rho > 0.75 and boundary:
-            delta *= GROW
-        if accepted:
-            x_old = s.x
-            s.move(s.x + t * p)
-            n_eval += 1
-            factored = False
-            if np.linalg.norm(s.x - x_old) <= 1e-15 * (1.0 + np.linalg.norm(s.x)):
-                stop = Status.STEP_TOO_SMALL
-        elif delta < 1e-15 * (1.0 + np.linalg.norm(s.x)):
-            stop = Status.STEP_TOO_SMALL
-        history.append(s.f)
-        if callback is not None and callback(dict(iteration=it, energy=s.f, grad_norm=s.gnorm, damping=delta,
-                                                  accepted=accepted, reason=f"gain {rho:.3g}, {j} CG")):
+        t, rho, k = _trial(s, p, s.zero_uv)
+        s.n_eval += k
+        delta = _radius(delta, t, rho, boundary, s.m_norm(p) if 0 < t < 1 else 0.0)
+        stop = s.advance(t * p, delta)
+        if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=delta,
+                                                  accepted=t > 0, reason=f"gain {rho:.3g}, {j} CG")):
             stop = Status.CALLBACK if stop == Status.MAX_ITER else stop
     if s.gnorm < tol and stop == Status.MAX_ITER:
         stop = Status.CONVERGED
-    return s.x, SolveResult(energy=float(s.f), grad_norm=s.gnorm, iterations=it, evaluations=n_eval,
-                            converged=bool(s.gnorm < tol), history=np.asarray(history), status=stop,
+    return s.x, SolveResult(energy=float(s.f), grad_norm=s.gnorm, iterations=s.it, evaluations=s.n_eval,
+                            converged=bool(s.gnorm < tol), history=np.asarray(s.history), status=stop,
                             solve_time_s=time.perf_counter() - t0,
-                            extra=dict(linear_solver=solver.name, cg_iterations=n_cg, saddle_escapes=escapes,
-                                       certificate=cert))
+                            extra=dict(linear_solver=s.solver.name, cg_iterations=s.n_cg, saddle_escapes=s.escapes,
+                                       certificate=s.cert))
