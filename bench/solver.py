@@ -1,7 +1,11 @@
 """LM solver benchmark on the research meshes and the sample scenes: prints Markdown tables.
 
     python bench/solver.py [--meshes beetle camelhead ...] [--alphas 0 0.1 0.5 0.9] [--inits lscm random]
-                           [--detail]
+                           [--step trust|damped] [--set MODULE.NAME=VALUE ...] [--detail]
+
+--set changes a module constant before the run, the way the routes of docs/decisions/solver.md were
+measured, e.g. ``--set uvbake.flatten.solvers.trust.BACKTRACK=0`` or
+``--set "uvbake.flatten.solve.CONTINUATION_SCHEDULE=(0.1, 0.5)"``.
 
 Charts: a mesh (or each label / connected piece of it) that is a disk is solved whole; a piece that is
 not (closed, handles) is solved as the pipeline's charts (:func:`uvbake.atlas.charting.make_charts`).
@@ -15,6 +19,8 @@ end: <= 40 iterations from LSCM at alpha 0.1 and 0.5, <= 200 from random starts.
 """
 
 import argparse
+import ast
+import importlib
 import platform
 import time
 from pathlib import Path
@@ -58,12 +64,21 @@ def main():
     ap.add_argument("--inits", nargs="+", default=["lscm", "random"])
     ap.add_argument("--max-iter", type=int, default=1000)
     ap.add_argument("--detail", action="store_true", help="one row per chart")
+    ap.add_argument("--step", default="trust", choices=["trust", "damped"])
+    ap.add_argument("--set", nargs="*", default=[], metavar="MODULE.NAME=VALUE")
     args = ap.parse_args()
+    for item in args.set:
+        target, value = item.split("=", 1)
+        module, name = target.rsplit(".", 1)
+        mod = importlib.import_module(module)
+        assert hasattr(mod, name), f"{module} has no {name}"
+        setattr(mod, name, ast.literal_eval(value))
     import uvbake
     from uvbake.flatten.solvers.linalg import cholmod_available
 
     print(f"# uvbake LM solver, {platform.processor() or platform.machine()}, "
-          f"linear solver {'CHOLMOD' if cholmod_available() else 'SuperLU'}\n")
+          f"linear solver {'CHOLMOD' if cholmod_available() else 'SuperLU'}, step {args.step}"
+          + (f", {' '.join(args.set)}" if args.set else "") + "\n")
     print("| mesh | charts | vertices | alpha | init | iterations (continuation) | sum | CPU (s) | F* | "
           "grad norm | converged | lambda_min | flipped |")
     print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---|---:|---:|")
@@ -77,7 +92,8 @@ def main():
         for init in args.inits:
             for alpha in args.alphas:
                 t = time.process_time()
-                rs = uvbake.parameterize_charts(charts, alpha=alpha, init=init, max_iter=args.max_iter, workers=1)
+                rs = uvbake.parameterize_charts(charts, alpha=alpha, init=init, max_iter=args.max_iter, workers=1,
+                                                step=args.step, checked=True)
                 cpu = time.process_time() - t
                 rows = list(zip(charts, rs)) if args.detail else [max(zip(charts, rs), key=lambda p: p[1].iterations)]
                 for c, r in rows:

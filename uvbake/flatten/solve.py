@@ -34,6 +34,9 @@ from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy, optimal_scale
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
+
+#: alphas of the continuation stages of an invalid start (measured: docs/decisions/solver.md)
+CONTINUATION_SCHEDULE: tuple[float, ...] = (CONTINUATION_ALPHA,)
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
 from uvbake.flatten.solvers.linalg import cholmod_available, make_solver
@@ -202,15 +205,25 @@ def _continuation(Vn: np.ndarray, F: np.ndarray, energy: DistortionEnergy, start
                   options: SolveOptions, callback: Callback | None,
                   solver: Any = None) -> tuple[np.ndarray, SolveResult | None]:
     """An invalid start (flipped triangles, e.g. init="random") first goes to the nearly convex
-    angle-dominated energy, then on to alpha (docs/decisions/continuation.md)."""
-    if not (options.continuation and options.alpha > CONTINUATION_ALPHA
-            and np.any(energy.determinants(start) <= 0)):
+    angle-dominated energy, then on to alpha (docs/decisions/continuation.md); with more than one
+    stage in CONTINUATION_SCHEDULE, through each alpha below the target in turn."""
+    stages = [a for a in CONTINUATION_SCHEDULE if a < options.alpha]
+    if not (options.continuation and stages and np.any(energy.determinants(start) <= 0)):
         return start, None
-    e_c = DistortionEnergy(Vn, F, alpha=CONTINUATION_ALPHA)
-    # the stage only has to reach the basin: no second-order test there
-    x_c, info_c = _run_backend(e_c, start, options.replace(certificate=False), options.max_iter, callback, solver)
-    start = e_c.to_uv(x_c, start)
-    return start * optimal_scale(energy, start), info_c
+    # the stages only have to reach the basin: no second-order test there
+    opts = options.replace(certificate=False)
+    total: SolveResult | None = None
+    for a in stages:
+        e_c = DistortionEnergy(Vn, F, alpha=a)
+        spent = total.iterations if total is not None else 0
+        x_c, info = _run_backend(e_c, start, opts, max(options.max_iter - spent, 0), callback, solver)
+        start = e_c.to_uv(x_c, start)
+        if total is not None:
+            info.iterations += total.iterations
+            info.evaluations += total.evaluations
+            info.history = np.concatenate([total.history, info.history[1:]])
+        total = info
+    return start * optimal_scale(energy, start), total
 
 
 def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.init,

@@ -37,6 +37,7 @@ SHRINK, GROW = 0.25, 2.0
 BACKTRACK = 4          # halvings of a failed trial step before the radius shrinks
 ACCEPT = 1e-4          # a step is taken when actual / predicted decrease exceeds it
 MAX_ESCAPES = 20       # saddle escapes per solve
+MODEL = "true"         # the model's Hessian: "true" H, or "projected" H+ (measured: projected Newton)
 
 
 def _boundary(zMz, zMd, dMd, delta):
@@ -130,6 +131,10 @@ class _State:
             return Status.STEP_TOO_SMALL
         return Status.MAX_ITER
 
+    @property
+    def model(self):
+        return self.Hp if MODEL == "projected" else self.H
+
     def m_norm(self, p):
         return float(np.sqrt(p @ (self.Hp @ p) + self.mu * (p @ p)))
 
@@ -162,7 +167,7 @@ def _radius(delta, t, rho, boundary, m_norm):
 def _trial(state, p, zero_uv):
     """The largest of p, p/2, ..., p/2^BACKTRACK that passes the gain test, as
     (t, rho, evaluations); t = 0 when none does."""
-    gp, pHp = float(state.g @ p), float(p @ (state.H @ p))
+    gp, pHp = float(state.g @ p), float(p @ (state.model @ p))
     t, rho = 1.0, -1.0
     for k in range(BACKTRACK + 1):
         pred = -(t * gp + 0.5 * t * t * pHp)
@@ -221,7 +226,7 @@ def trust_region(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, linear_solver=
             continue
         if delta is None:                          # first radius: the preconditioned steepest descent's
             delta = float(np.sqrt(max(s.g @ s.solver.solve(s.g), 0.0))) or 1.0
-        p, boundary, j = steihaug(s.H, s.g, s.solver.solve, delta, min(ETA_MAX, np.sqrt(s.gnorm)))
+        p, boundary, j = steihaug(s.model, s.g, s.solver.solve, delta, min(ETA_MAX, np.sqrt(s.gnorm)))
         s.n_cg += j
         if step_limit is not None:
             p = p * step_limit(s.x, p)
