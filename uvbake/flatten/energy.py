@@ -130,6 +130,7 @@ class DistortionEnergy:
         self._QQ = np.zeros((m, 6, 4))
         self._QQ[:, :3, 0], self._QQ[:, :3, 1] = self.a, self.b
         self._QQ[:, 3:, 2], self._QQ[:, 3:, 3] = self.a, self.b
+        self._angle_cache = None
         self._H_det = np.zeros((m, 6, 6))
         self._H_det[:, :3, 3:] = Huv
         self._H_det[:, 3:, :3] = np.transpose(Huv, (0, 2, 1))
@@ -227,10 +228,21 @@ class DistortionEnergy:
         f = float(np.dot(w, al * (det - 1.0) ** 2 + (1.0 - al) * (r1 ** 2 + r2 ** 2)))
         if not hessian:
             return f, g, None
-        H = (2.0 * al * w)[:, None, None] * np.einsum("mi,mj->mij", gdet, gdet)
-        H += ca[:, None, None] * self._H_det
-        H += ((1.0 - al) * w)[:, None, None] * self._H_angle
+        # the part that varies: 2 alpha w gdet gdet^T + ca Hess(det) (Hess(det) lives in the u-v blocks);
+        # the angle term's constant part is added after the scatter (evaluate)
+        sg = np.sqrt(2.0 * al * w)[:, None] * gdet                  # symmetric to the last bit
+        H = sg[:, :, None] * sg[:, None, :]
+        Huv = ca[:, None, None] * self._H_det[:, :3, 3:]
+        H[:, :3, 3:] += Huv
+        H[:, 3:, :3] += np.transpose(Huv, (0, 2, 1))
         return f, g, H
+
+    @property
+    def _angle_data(self):
+        """The angle term's Hessian (constant) in the CSC data layout, scattered once."""
+        if self._angle_cache is None:
+            self._angle_cache = self._scatter_blocks(((1.0 - self.alpha) * self.w)[:, None, None] * self._H_angle)
+        return self._angle_cache
 
     def projection_correction(self, uv):
         """The PSD part that lifts each triangle's Hessian block h_t (in the Jacobian's coordinates
@@ -299,6 +311,7 @@ class DistortionEnergy:
         """F, gradient and Hessian (CSC, fixed pattern; ``out`` is refilled in place if given)."""
         f, g, H = self._local(uv, hessian=True)
         data = self._scatter_blocks(H)
+        data += self._angle_data
         if out is None:
             out = self.empty_matrix()
         out.data[:] = data
