@@ -27,6 +27,8 @@ a CSC matrix whose pattern (the mesh's vertex adjacency, two unknowns per vertex
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -98,10 +100,7 @@ class DistortionEnergy:
     """
 
     def __init__(self, V, F, *, alpha, weights=None, fixed=None):
-        alpha = float(alpha)
-        if not 0.0 <= alpha <= 1.0 or not np.isfinite(alpha):
-            raise InputError(f"alpha={alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) "
-                             "and 1 (areas only)")
+        alpha = self._check_alpha(alpha)
         self.V = np.asarray(V, dtype=np.float64)
         self.F = np.asarray(F, dtype=np.int64)
         self.alpha = alpha
@@ -119,21 +118,30 @@ class DistortionEnergy:
         self.free_index[~self.fixed] = np.arange(int((~self.fixed).sum()))
         self.n_free = int((~self.fixed).sum())
         self._build_pattern()
-        # constant Hessian of the angle term: 2 (g1 g1^T + g2 g2^T), g1 = [a, -b], g2 = [b, a]
-        self._g1 = np.concatenate([self.a, -self.b], axis=1)                  # (m,6)
-        self._g2 = np.concatenate([self.b, self.a], axis=1)
-        self._H_angle = 2.0 * (np.einsum("mi,mj->mij", self._g1, self._g1)
-                               + np.einsum("mi,mj->mij", self._g2, self._g2))
+        self._g1 = np.concatenate([self.a, -self.b], axis=1)                  # (m,6): grad r1 = [a, -b]
+        self._g2 = np.concatenate([self.b, self.a], axis=1)                   # grad r2 = [b, a]
         # Hess(det): u-v block a_k b_l - b_k a_l and its transpose
-        Huv = np.einsum("mk,ml->mkl", self.a, self.b) - np.einsum("mk,ml->mkl", self.b, self.a)
+        self._Huv = np.einsum("mk,ml->mkl", self.a, self.b) - np.einsum("mk,ml->mkl", self.b, self.a)
         # A = QQ^T x_t: the Jacobian's entries (A11, A12, A21, A22) from the local unknowns
         self._QQ = np.zeros((m, 6, 4))
         self._QQ[:, :3, 0], self._QQ[:, :3, 1] = self.a, self.b
         self._QQ[:, 3:, 2], self._QQ[:, 3:, 3] = self.a, self.b
         self._angle_cache = None
-        self._H_det = np.zeros((m, 6, 6))
-        self._H_det[:, :3, 3:] = Huv
-        self._H_det[:, 3:, :3] = np.transpose(Huv, (0, 2, 1))
+
+    def with_alpha(self, alpha):
+        """The same chart's energy at another alpha (geometry and sparsity pattern shared, not rebuilt)."""
+        other = copy.copy(self)
+        other.alpha = float(DistortionEnergy._check_alpha(alpha))
+        other._angle_cache = None
+        return other
+
+    @staticmethod
+    def _check_alpha(alpha):
+        alpha = float(alpha)
+        if not 0.0 <= alpha <= 1.0 or not np.isfinite(alpha):
+            raise InputError(f"alpha={alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) "
+                             "and 1 (areas only)")
+        return alpha
 
     # -- sparsity pattern, built once ------------------------------------------------------------
     def _build_pattern(self):
@@ -232,7 +240,7 @@ class DistortionEnergy:
         # the angle term's constant part is added after the scatter (evaluate)
         sg = np.sqrt(2.0 * al * w)[:, None] * gdet                  # symmetric to the last bit
         H = sg[:, :, None] * sg[:, None, :]
-        Huv = ca[:, None, None] * self._H_det[:, :3, 3:]
+        Huv = ca[:, None, None] * self._Huv
         H[:, :3, 3:] += Huv
         H[:, 3:, :3] += np.transpose(Huv, (0, 2, 1))
         return f, g, H
@@ -241,7 +249,10 @@ class DistortionEnergy:
     def _angle_data(self):
         """The angle term's Hessian (constant) in the CSC data layout, scattered once."""
         if self._angle_cache is None:
-            self._angle_cache = self._scatter_blocks(((1.0 - self.alpha) * self.w)[:, None, None] * self._H_angle)
+            # 2 (1 - alpha) w (g1 g1^T + g2 g2^T)
+            c = np.sqrt(2.0 * (1.0 - self.alpha) * self.w)[:, None]
+            g1, g2 = c * self._g1, c * self._g2
+            self._angle_cache = self._scatter_blocks(g1[:, :, None] * g1[:, None, :] + g2[:, :, None] * g2[:, None, :])
         return self._angle_cache
 
     def projection_correction(self, uv):

@@ -150,7 +150,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     # when alpha > 0.1), and the certificate factors the same Hessian
     solver = make_solver(energy.empty_matrix(), method=options.linear_solver) if options.backend == "lm" else None
 
-    uv_start, stage = _continuation(Vn, F, energy, uv_start, options, callback, solver)
+    uv_start, stage = _continuation(energy, uv_start, options, callback, solver)
     spent = stage.iterations if stage is not None else 0
     x, info = _run_backend(energy, uv_start, options, max(options.max_iter - spent, 0), callback, solver)
     iterations = info.iterations + spent
@@ -201,7 +201,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     )
 
 
-def _continuation(Vn: np.ndarray, F: np.ndarray, energy: DistortionEnergy, start: np.ndarray,
+def _continuation(energy: DistortionEnergy, start: np.ndarray,
                   options: SolveOptions, callback: Callback | None,
                   solver: Any = None) -> tuple[np.ndarray, SolveResult | None]:
     """An invalid start (flipped triangles, e.g. init="random") first goes to the nearly convex
@@ -214,7 +214,7 @@ def _continuation(Vn: np.ndarray, F: np.ndarray, energy: DistortionEnergy, start
     opts = options.replace(certificate=False)
     total: SolveResult | None = None
     for a in stages:
-        e_c = DistortionEnergy(Vn, F, alpha=a)
+        e_c = energy.with_alpha(a)
         spent = total.iterations if total is not None else 0
         x_c, info = _run_backend(e_c, start, opts, max(options.max_iter - spent, 0), callback, solver)
         start = e_c.to_uv(x_c, start)

@@ -67,8 +67,8 @@ def gauge_basis(energy: DistortionEnergy, uv: np.ndarray) -> np.ndarray:
     B[1::2, 2] = c[:, 0]
     if np.linalg.norm(c) == 0:          # the collapsed map: rotation moves nothing
         B = B[:, :2]
-    q, _ = np.linalg.qr(B)
-    return q
+    # the columns are already orthogonal (c is centred): normalise them
+    return B / np.linalg.norm(B, axis=0)
 
 
 def certify(energy, uv, *, linear_solver="auto", H=None, solver=None):
