@@ -94,6 +94,7 @@ class _State:
         self.move(x)
         self.history.append(self.f)
         self.solver = solver or make_solver(self.H, method=linear_solver)
+        self.pinned = bool(energy.fixed.any())
         diag = energy.diagonal_slots
         self.mu = SHIFT * max(float(np.max(np.abs(self.H.data[diag]))) if len(diag) else 1.0, 1e-300)
 
@@ -130,6 +131,15 @@ class _State:
         if (moved > 0 and moved <= small) or (moved == 0 and delta < small):
             return Status.STEP_TOO_SMALL
         return Status.MAX_ITER
+
+    def msolve(self, r):
+        """M^-1 r without its translation part when nothing is pinned: H is exactly singular along
+        the two translations, where M's tiny shift would otherwise amplify r's rounding."""
+        y = self.solver.solve(r)
+        if not self.pinned:
+            y = y.reshape(-1, 2)
+            y = (y - y.mean(axis=0)).ravel()
+        return y
 
     @property
     def model(self):
@@ -225,8 +235,8 @@ def trust_region(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, linear_solver=
         elif not s.factor():
             continue
         if delta is None:                          # first radius: the preconditioned steepest descent's
-            delta = float(np.sqrt(max(s.g @ s.solver.solve(s.g), 0.0))) or 1.0
-        p, boundary, j = steihaug(s.model, s.g, s.solver.solve, delta, min(ETA_MAX, np.sqrt(s.gnorm)))
+            delta = float(np.sqrt(max(s.g @ s.msolve(s.g), 0.0))) or 1.0
+        p, boundary, j = steihaug(s.model, s.g, s.msolve, delta, min(ETA_MAX, np.sqrt(s.gnorm)))
         s.n_cg += j
         if step_limit is not None:
             p = p * step_limit(s.x, p)
