@@ -181,7 +181,7 @@ def fig7(name, alphas=(0.1, 0.3, 0.5, 0.7, 0.9)):
 
 def table4(meshes):
     from blender_abf import abf
-    from peers import available, igl_arap, igl_lscm
+    from flatten_peers import available, igl_arap, igl_lscm
 
     import uvbake
 
