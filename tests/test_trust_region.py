@@ -4,15 +4,16 @@ reuse of the solver's symbolic analysis."""
 
 import numpy as np
 import pytest
-from meshgen import bumpy_disk
 
-from uvbake.flatten.solve import parameterize
 from uvbake.flatten.energy import DistortionEnergy, triangle_frames
+from uvbake.flatten.solve import parameterize
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import make_solver
 from uvbake.flatten.solvers.trust import SHIFT, steihaug
 from uvbake.flatten.starts import initial_map
 from uvbake.mesh.arrays import unit_scale
+
+from meshgen import bumpy_disk
 
 
 def _eig(M):

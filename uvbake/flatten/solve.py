@@ -34,9 +34,6 @@ from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy, optimal_scale
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
-
-#: alphas of the continuation stages of an invalid start (measured: docs/decisions/solver.md)
-CONTINUATION_SCHEDULE: tuple[float, ...] = (CONTINUATION_ALPHA,)
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
 from uvbake.flatten.solvers.linalg import cholmod_available, make_solver
@@ -46,6 +43,9 @@ from uvbake.flatten.solvers.trust import trust_region
 from uvbake.flatten.starts import farthest_boundary_pair, initial_map
 from uvbake.mesh.arrays import unit_scale
 from uvbake.mesh.charts import Chart, check_chart
+
+#: alphas of the continuation stages of an invalid start (measured: docs/decisions/solver.md)
+CONTINUATION_SCHEDULE: tuple[float, ...] = (CONTINUATION_ALPHA,)
 
 __all__ = ["parameterize", "parameterize_charts", "solve_chart", "limit_blas_threads", "SolveOptions"]
 
@@ -124,15 +124,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     F = np.asarray(F, dtype=np.int64)
     Vn, unit = unit_scale(V, F)
     alpha = options.alpha
-    if start is not None:
-        start = np.asarray(start, dtype=np.float64)
-        if start.shape != (len(V), 2) or not np.all(np.isfinite(start)):
-            raise InputError(f"{name}: uv0 has shape {start.shape} or non-finite values; pass finite (n,2) UVs")
-        uv_start = start / unit
-        init_name = "given"
-    else:
-        uv_start = initial_map(Vn, F, options.init, seed=options.seed)
-        init_name = options.init
+    uv_start, init_name = _start_map(Vn, F, unit, start, options, name)
 
     fixed = None
     if alpha == 0.0:
@@ -199,6 +191,17 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         lambda_min=cert.lambda_min if cert else float("nan"),
         is_local_minimum=(bool(grad_norm < options.tol) and cert.is_local_minimum) if cert else None,
     )
+
+
+def _start_map(Vn: np.ndarray, F: np.ndarray, unit: float, start: np.ndarray | None, options: SolveOptions,
+               name: str) -> tuple[np.ndarray, str]:
+    """The start map in the solver's unit frame, and its name for the report."""
+    if start is None:
+        return initial_map(Vn, F, options.init, seed=options.seed), options.init
+    start = np.asarray(start, dtype=np.float64)
+    if start.shape != (len(Vn), 2) or not np.all(np.isfinite(start)):
+        raise InputError(f"{name}: uv0 has shape {start.shape} or non-finite values; pass finite (n,2) UVs")
+    return start / unit, "given"
 
 
 def _continuation(energy: DistortionEnergy, start: np.ndarray,
