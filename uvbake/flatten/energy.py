@@ -256,55 +256,68 @@ class DistortionEnergy:
         return self._angle_cache
 
     def projection_correction(self, uv):
-        """The PSD part that lifts each triangle's Hessian block h_t (in the Jacobian's coordinates
-        A11, A12, A21, A22) to its projection onto the positive semidefinite cone: weights e (m,4) >= 0
-        and unit eigenvectors vec (m,4,4) (columns), h_t^+ = h_t + sum_k e_k vec_k vec_k^T (the clamping
-        of Teran et al. 2005, in closed form; H_t = QQ h_t QQ^T, so H_t^+ is PSD as well).
+        """What lifts each triangle's Hessian block h_t (in the Jacobian's coordinates A11, A12, A21,
+        A22) to its projection onto the positive semidefinite cone: the triangles ``rows`` whose block
+        is indefinite and their corrections E (s,4,4), PSD, with h_t^+ = h_t + E (the clamping of Teran
+        et al. 2005, in closed form; H_t = QQ h_t QQ^T, so H_t^+ is PSD as well).
 
-        In the Jacobian's 4-space, with the orthonormal conformal pair c1 = (1,0,0,1)/sqrt2,
-        c2 = (0,1,-1,0)/sqrt2 and anticonformal pair n1 = (1,0,0,-1)/sqrt2, n2 = (0,1,1,0)/sqrt2 and
+        With the orthonormal conformal pair c1 = (1,0,0,1)/sqrt2, c2 = (0,1,-1,0)/sqrt2, the
+        anticonformal pair n1 = (1,0,0,-1)/sqrt2, n2 = (0,1,1,0)/sqrt2 and
         A = p1 c1 + p2 c2 + q1 n1 + q2 n2: det = (|p|^2 - |q|^2)/2, grad det = (p, -q), Hess det =
         diag(1,1,-1,-1), and the angle term's Hessian is 4 (1 - alpha) w on the anticonformal pair. So
         h = s g g^T + diag(dc, dc, da, da) with s = 2 alpha w, dc = s (det - 1),
-        da = 4 (1 - alpha) w - s (det - 1): eigenvalue dc across p in the conformal plane, da across
-        q in the anticonformal one, and a 2x2 block on (p/|p|, -q/|q|).
+        da = 4 (1 - alpha) w - dc: eigenvalue dc across p in the conformal plane, da across q in the
+        anticonformal one, and a 2x2 block B on (p/|p|, -q/|q|), whose negative part is B itself,
+        lambda_- (B - lambda_+ I) / (lambda_+ - lambda_-) or nothing.
         """
         A11, A12, A21, A22 = self._terms(uv)
         det = A11 * A22 - A12 * A21
         r = np.sqrt(0.5)
-        p1, p2 = r * (A11 + A22), r * (A12 - A21)
-        q1, q2 = r * (A11 - A22), r * (A12 + A21)
-        P, Qn = np.hypot(p1, p2), np.hypot(q1, q2)
-        al, w = self.alpha, self.w
-        s = 2.0 * al * w
+        p1, p2, q1, q2 = r * (A11 + A22), r * (A12 - A21), r * (A11 - A22), r * (A12 + A21)
+        P2, Q2 = p1 * p1 + p2 * p2, q1 * q1 + q2 * q2
+        s = 2.0 * self.alpha * self.w
         dc = s * (det - 1.0)
-        da = 4.0 * (1.0 - al) * w - dc
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ph = np.where(P > 0, np.stack([p1, p2]) / P, np.array([[1.0], [0.0]]))     # (2,m) in (c1,c2)
-            qh = np.where(Qn > 0, -np.stack([q1, q2]) / Qn, np.array([[1.0], [0.0]]))  # (2,m) in (n1,n2)
-        x, y, z = dc + s * P * P, s * P * Qn, da + s * Qn * Qn
-        theta = 0.5 * np.arctan2(2.0 * y, x - z)
+        da = 4.0 * (1.0 - self.alpha) * self.w - dc
+        x, y, z = dc + s * P2, s * np.sqrt(P2 * Q2), da + s * Q2
         mean, rad = 0.5 * (x + z), np.hypot(0.5 * (x - z), y)
-        ct, st = np.cos(theta), np.sin(theta)
-        zero = np.zeros((2, len(det)))
-        # the four eigenpairs: eigenvalue, coordinates on (c1, c2) and on (n1, n2)
-        lam = np.stack([mean + rad, mean - rad, dc, da], axis=1)                     # (m,4)
-        cc = np.stack([ct * ph, -st * ph, np.stack([-ph[1], ph[0]]), zero], axis=2)  # (2,m,4)
-        nn = np.stack([st * qh, ct * qh, zero, np.stack([-qh[1], qh[0]])], axis=2)
-        # in the Jacobian's coordinates (A11, A12, A21, A22): (m,4 entries,4 eigenpairs)
-        vec = r * np.stack([cc[0] + nn[0], cc[1] + nn[1], nn[1] - cc[1], cc[0] - nn[0]], axis=1)
-        return np.maximum(-lam, 0.0), vec
+        rows = np.flatnonzero((dc < 0) | (da < 0) | (mean < rad))
+        if not len(rows):
+            return rows, np.zeros((0, 4, 4))
+        p1, p2, q1, q2, P2, Q2 = p1[rows], p2[rows], q1[rows], q2[rows], P2[rows], Q2[rows]
+        x, y, z, dc, da = x[rows], y[rows], z[rows], dc[rows], da[rows]
+        lo, hi = mean[rows] - rad[rows], mean[rows] + rad[rows]
+        # unit directions in A-coordinates (arbitrary ones where p or q vanishes)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ip = np.where(P2 > 0, r / np.sqrt(P2), 0.0)
+            iq = np.where(Q2 > 0, r / np.sqrt(Q2), 0.0)
+        ph1, ph2 = np.where(P2 > 0, p1 * ip, r), p2 * ip            # p/|p| on (c1, c2), times r
+        qh1, qh2 = np.where(Q2 > 0, -q1 * iq, r), -q2 * iq          # -q/|q| on (n1, n2), times r
+        b1 = np.stack([ph1, ph2, -ph2, ph1], axis=1)                  # p/|p|
+        b2 = np.stack([qh1, qh2, qh2, -qh1], axis=1)                  # -q/|q|
+        bp = np.stack([-ph2, ph1, -ph1, -ph2], axis=1)                # across p (conformal)
+        bq = np.stack([-qh2, qh1, qh1, qh2], axis=1)                  # across q (anticonformal)
+        # the negative part of B, negated, in the (b1, b2) basis
+        both = hi <= 0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f = np.where(both, -1.0, np.where(lo < 0, lo / (hi - lo), 0.0))
+        shift = np.where(both, 0.0, hi)
+        c11, c12, c22 = f * (x - shift), f * y, f * (z - shift)
+        E = (c11[:, None, None] * (b1[:, :, None] * b1[:, None, :])
+             + c12[:, None, None] * (b1[:, :, None] * b2[:, None, :] + b2[:, :, None] * b1[:, None, :])
+             + c22[:, None, None] * (b2[:, :, None] * b2[:, None, :])
+             + np.maximum(-dc, 0.0)[:, None, None] * (bp[:, :, None] * bp[:, None, :])
+             + np.maximum(-da, 0.0)[:, None, None] * (bq[:, :, None] * bq[:, None, :]))
+        return rows, E
 
     def projected_hessian(self, uv, H, out=None):
         """The Hessian with every triangle's block projected onto the PSD cone in the Jacobian's
         coordinates (``H`` the true one at ``uv``, same pattern; ``out`` refilled in place if given):
         positive semidefinite always, and equal to H on triangles whose block already is."""
-        e, vec = self.projection_correction(uv)
-        rows = np.flatnonzero(e.any(axis=1))
+        rows, E = self.projection_correction(uv)
         data = H.data.copy()
         if len(rows):
-            W = self._QQ[rows] @ (vec[rows] * np.sqrt(e[rows])[:, None, :])              # (s,6,4)
-            data += self._scatter_blocks(W @ np.transpose(W, (0, 2, 1)), rows)
+            QQ = self._QQ[rows]
+            data += self._scatter_blocks(QQ @ E @ np.transpose(QQ, (0, 2, 1)), rows)
         if out is None:
             out = self.empty_matrix()
         out.data[:] = data
