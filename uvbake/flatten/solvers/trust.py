@@ -37,6 +37,7 @@ SHRINK, GROW = 0.25, 2.0
 BACKTRACK = 4          # halvings of a failed trial step before the radius shrinks
 ACCEPT = 1e-4          # a step is taken when actual / predicted decrease exceeds it
 MAX_ESCAPES = 20       # saddle escapes per solve
+NEWTON_FIRST = False   # after a full interior step with a good gain, try the true H + mu I first (measured: not adopted)
 MODEL = "true"         # the model's Hessian: "true" H, or "projected" H+ (measured: projected Newton)
 
 
@@ -95,6 +96,7 @@ class _State:
         self.history.append(self.f)
         self.solver = solver or make_solver(self.H, method=linear_solver)
         self.pinned = bool(energy.fixed.any())
+        self.newton, self.M = False, self.Hp
         diag = energy.diagonal_slots
         self.mu = SHIFT * max(float(np.max(np.abs(self.H.data[diag]))) if len(diag) else 1.0, 1e-300)
 
@@ -108,16 +110,28 @@ class _State:
         self.cert = None
 
     def factor(self):
-        """Factor M = H+ + mu I here (one iteration); False when rounding made it fail (mu raised)."""
-        self.energy.projected_hessian(self.uv, self.H, out=self.Hp)
+        """Factor M here (one iteration): H + mu I when the last step looked like Newton's (near the
+        minimum, where H is positive definite but many triangles' blocks are not, so H+ != H), else
+        H+ + mu I. False when the factorisation failed (H indefinite: H+ next; H+ nearly singular
+        in rounding: mu raised)."""
         self.it += 1
+        if self.newton:
+            self.newton = False
+            try:
+                self.solver.factor(self.H, self.mu)
+                self.M, self.factored = self.H, True
+                return True
+            except NotPositiveDefinite:
+                self.history.append(self.f)
+                return False
+        self.energy.projected_hessian(self.uv, self.H, out=self.Hp)
         try:
             self.solver.factor(self.Hp, self.mu)
         except NotPositiveDefinite:                # rounding on a nearly singular H+: more shift
             self.mu *= 100.0
             self.history.append(self.f)
             return False
-        self.factored = True
+        self.M, self.factored = self.Hp, True
         return True
 
     def advance(self, step, delta):
@@ -146,7 +160,7 @@ class _State:
         return self.Hp if MODEL == "projected" else self.H
 
     def m_norm(self, p):
-        return float(np.sqrt(p @ (self.Hp @ p) + self.mu * (p @ p)))
+        return float(np.sqrt(p @ (self.M @ p) + self.mu * (p @ p)))
 
     def second_order(self):
         """The certificate here; True when it found a saddle and moved off it."""
@@ -243,6 +257,7 @@ def trust_region(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, linear_solver=
         t, rho, k = _trial(s, p, s.zero_uv)
         s.n_eval += k
         delta = _radius(delta, t, rho, boundary, s.m_norm(p) if 0 < t < 1 else 0.0)
+        s.newton = NEWTON_FIRST and t == 1.0 and not boundary and rho > 0.75
         stop = s.advance(t * p, delta)
         if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=delta,
                                                   accepted=t > 0, reason=f"gain {rho:.3g}, {j} CG")):
