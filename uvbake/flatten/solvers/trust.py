@@ -159,6 +159,11 @@ class _State:
     def model(self):
         return self.Hp if MODEL == "projected" else self.H
 
+    def after_trial(self, delta, t, rho, boundary, p):
+        """The new trust radius; whether to try the true H next (NEWTON_FIRST)."""
+        self.newton = NEWTON_FIRST and t == 1.0 and not boundary and rho > 0.75
+        return _radius(delta, t, rho, boundary, self.m_norm(p) if 0 < t < 1 else 0.0)
+
     def m_norm(self, p):
         return float(np.sqrt(p @ (self.M @ p) + self.mu * (p @ p)))
 
@@ -256,8 +261,7 @@ def trust_region(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, linear_solver=
             p = p * step_limit(s.x, p)
         t, rho, k = _trial(s, p, s.zero_uv)
         s.n_eval += k
-        delta = _radius(delta, t, rho, boundary, s.m_norm(p) if 0 < t < 1 else 0.0)
-        s.newton = NEWTON_FIRST and t == 1.0 and not boundary and rho > 0.75
+        delta = s.after_trial(delta, t, rho, boundary, p)
         stop = s.advance(t * p, delta)
         if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=delta,
                                                   accepted=t > 0, reason=f"gain {rho:.3g}, {j} CG")):
