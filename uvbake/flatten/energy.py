@@ -128,7 +128,7 @@ class DistortionEnergy:
         self._QQ[:, 3:, 2], self._QQ[:, 3:, 3] = self.a, self.b
         self._angle_cache = None
 
-    def with_alpha(self, alpha):
+    def with_alpha(self, alpha: float) -> DistortionEnergy:
         """The same chart's energy at another alpha (geometry and sparsity pattern shared, not rebuilt)."""
         other = copy.copy(self)
         other.alpha = float(DistortionEnergy._check_alpha(alpha))
@@ -255,7 +255,7 @@ class DistortionEnergy:
             self._angle_cache = self._scatter_blocks(g1[:, :, None] * g1[:, None, :] + g2[:, :, None] * g2[:, None, :])
         return self._angle_cache
 
-    def projection_correction(self, uv):
+    def projection_correction(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """What lifts each triangle's Hessian block h_t (in the Jacobian's coordinates A11, A12, A21,
         A22) to its projection onto the positive semidefinite cone: the triangles ``rows`` whose block
         is indefinite and their corrections E (s,4,4), PSD, with h_t^+ = h_t + E (the clamping of Teran
@@ -309,7 +309,8 @@ class DistortionEnergy:
              + np.maximum(-da, 0.0)[:, None, None] * (bq[:, :, None] * bq[:, None, :]))
         return rows, E
 
-    def projected_hessian(self, uv, H, out=None):
+    def projected_hessian(self, uv: np.ndarray, H: sp.csc_matrix,
+                          out: sp.csc_matrix | None = None) -> sp.csc_matrix:
         """The Hessian with every triangle's block projected onto the PSD cone in the Jacobian's
         coordinates (``H`` the true one at ``uv``, same pattern; ``out`` refilled in place if given):
         positive semidefinite always, and equal to H on triangles whose block already is."""
@@ -323,7 +324,7 @@ class DistortionEnergy:
         out.data[:] = data
         return out
 
-    def value_and_gradient(self, uv):
+    def value_and_gradient(self, uv: np.ndarray) -> tuple[float, np.ndarray]:
         """F and its gradient over the free unknowns (interleaved u, v per vertex)."""
         f, g, _ = self._local(uv, hessian=False)
         return f, self._scatter_gradient(g)

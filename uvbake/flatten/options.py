@@ -20,6 +20,8 @@ from uvbake.errors import InputError
 #: start maps (:func:`uvbake.flatten.starts.initial_map`)
 INITS = ("lscm", "tutte", "random", "isomap", "laplacian")
 BACKENDS = ("lm", "lbfgs")
+#: sparse factorisations (:func:`uvbake.flatten.solvers.linalg.make_solver`)
+LINEAR_SOLVERS = ("auto", "cholmod", "superlu")
 #: steps of the second-order backend: the trust-region Newton-CG step, or Levenberg-Marquardt's damped step
 STEPS = ("trust", "damped")
 

@@ -18,6 +18,7 @@ Values are those of the solver's scale-free frame (mesh and map at unit mean edg
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -71,7 +72,8 @@ def gauge_basis(energy: DistortionEnergy, uv: np.ndarray) -> np.ndarray:
     return B / np.linalg.norm(B, axis=0)
 
 
-def certify(energy, uv, *, linear_solver="auto", H=None, solver=None):
+def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "auto", H: Any = None,
+            solver: Any = None) -> Certificate:
     """The :class:`Certificate` of ``uv`` (per-vertex UVs in the energy's frame).
 
     ``H`` is the Hessian at ``uv`` if already evaluated; ``solver`` a solver from

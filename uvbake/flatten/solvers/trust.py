@@ -22,6 +22,8 @@ the routes compared: docs/decisions/solver.md.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,6 +31,9 @@ from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
 from uvbake.flatten.solvers.result import SolveResult, Status
+
+if TYPE_CHECKING:
+    from uvbake.flatten.energy import DistortionEnergy
 
 ETA_MAX = 0.1          # loosest relative CG residual (far from the minimum)
 MAX_CG = 50            # CG iterations per trial step
@@ -47,7 +52,8 @@ def _boundary(zMz, zMd, dMd, delta):
     return (-zMd + np.sqrt(max(disc, 0.0))) / dMd
 
 
-def steihaug(H, g, msolve, delta, eta, max_cg=MAX_CG):
+def steihaug(H: Any, g: np.ndarray, msolve: Callable[[np.ndarray], np.ndarray], delta: float, eta: float,
+             max_cg: int = MAX_CG) -> tuple[np.ndarray, bool, int]:
     """Approximately minimise g.p + p.H p / 2 over ||p||_M <= delta by CG preconditioned with M
     (``msolve(r) = M^-1 r``); the M-norms of the iterates are updated by the recurrences of Conn,
     Gould and Toint (Trust-Region Methods, 2000, sec. 7.5).
@@ -223,8 +229,11 @@ def _escape(state, cert, step_limit, zero_uv):
     return None
 
 
-def trust_region(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, linear_solver="auto", callback=None,
-                 step_limit=None, solver=None, certificate=True):
+def trust_region(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarray, tol: float = 1e-8,
+                 max_iter: int = 500, linear_solver: str = "auto",
+                 callback: Callable[[dict[str, Any]], Any] | None = None,
+                 step_limit: Callable[[np.ndarray, np.ndarray], float] | None = None, solver: Any = None,
+                 certificate: bool = True) -> tuple[np.ndarray, SolveResult]:
     """Minimise ``energy`` (a :class:`uvbake.flatten.energy.DistortionEnergy`) from the free unknowns ``x0``.
 
     The arguments and result of :func:`uvbake.flatten.solvers.lm.levenberg_marquardt`, and:
