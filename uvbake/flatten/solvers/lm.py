@@ -15,13 +15,18 @@ symbolic factorisation is computed once. Constants: docs/decisions/lm-damping.md
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
 from uvbake.flatten.solvers.result import SolveResult, Status
+
+if TYPE_CHECKING:
+    from uvbake.flatten.energy import DistortionEnergy
 
 # Damping constants, chosen by measurement (docs/decisions/lm-damping.md, bench/solver.py).
 # MIN_SHRINK: an accepted step lowers lambda at most tenfold. Damping memory: after an accepted step
@@ -41,8 +46,11 @@ SADDLE_EPS = 1e-9
 MAX_ESCAPES = 20
 
 
-def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0=None,
-                        linear_solver="auto", callback=None, step_limit=None, solver=None):
+def levenberg_marquardt(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarray, tol: float = 1e-8,
+                        max_iter: int = 500, lambda0: float | None = None, linear_solver: str = "auto",
+                        callback: Callable[[dict[str, Any]], Any] | None = None,
+                        step_limit: Callable[[np.ndarray, np.ndarray], float] | None = None,
+                        solver: Any = None) -> tuple[np.ndarray, SolveResult]:
     """Minimise ``energy`` (a :class:`uvbake.flatten.energy.DistortionEnergy`) from the free unknowns ``x0``.
 
     Parameters
