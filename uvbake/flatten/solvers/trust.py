@@ -43,6 +43,7 @@ BACKTRACK = 4          # halvings of a failed trial step before the radius shrin
 ACCEPT = 1e-4          # a step is taken when actual / predicted decrease exceeds it
 MAX_ESCAPES = 20       # saddle escapes per solve
 NEWTON_FIRST = False   # after a full interior step with a good gain, try the true H + mu I first (measured: not adopted)
+REUSE_CG = 10          # keep M for the next step after a Newton-like step that took <= REUSE_CG CG iterations
 MODEL = "true"         # the model's Hessian: "true" H, or "projected" H+ (measured: projected Newton)
 
 
@@ -102,7 +103,7 @@ class _State:
         self.history.append(self.f)
         self.solver = solver or make_solver(self.H, method=linear_solver)
         self.pinned = bool(energy.fixed.any())
-        self.newton, self.M = False, self.Hp
+        self.newton, self.reuse, self.M = False, False, self.Hp
         diag = energy.diagonal_slots
         self.mu = SHIFT * max(float(np.max(np.abs(self.H.data[diag]))) if len(diag) else 1.0, 1e-300)
 
@@ -145,6 +146,7 @@ class _State:
         x_old = self.x
         if np.any(step):
             self.move(self.x + step)
+            self.factored = self.reuse             # M of the previous iterate as the preconditioner
         self.history.append(self.f)
         moved = float(np.linalg.norm(self.x - x_old))
         small = 1e-15 * (1.0 + np.linalg.norm(self.x))
@@ -165,9 +167,12 @@ class _State:
     def model(self):
         return self.Hp if MODEL == "projected" else self.H
 
-    def after_trial(self, delta, t, rho, boundary, p):
-        """The new trust radius; whether to try the true H next (NEWTON_FIRST)."""
-        self.newton = NEWTON_FIRST and t == 1.0 and not boundary and rho > 0.75
+    def after_trial(self, delta, t, rho, boundary, p, cg):
+        """The new trust radius; whether to try the true H next (NEWTON_FIRST) or to keep the
+        factorisation for the next step (REUSE_CG)."""
+        good = t == 1.0 and not boundary and rho > 0.75
+        self.newton = NEWTON_FIRST and good
+        self.reuse = good and cg <= REUSE_CG
         return _radius(delta, t, rho, boundary, self.m_norm(p) if 0 < t < 1 else 0.0)
 
     def m_norm(self, p):
@@ -270,7 +275,7 @@ def trust_region(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarr
             p = p * step_limit(s.x, p)
         t, rho, k = _trial(s, p, s.zero_uv)
         s.n_eval += k
-        delta = s.after_trial(delta, t, rho, boundary, p)
+        delta = s.after_trial(delta, t, rho, boundary, p, j)
         stop = s.advance(t * p, delta)
         if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=delta,
                                                   accepted=t > 0, reason=f"gain {rho:.3g}, {j} CG")):
