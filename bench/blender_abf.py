@@ -41,8 +41,10 @@ def abf(V, F, *, timeout_s=600):
 
 
 def _main(src, dst):
-    import bmesh  # noqa: F401  (loads Blender's mesh module with bpy)
     import bpy
+
+    # isort: split
+    import bmesh  # noqa: F401  (Blender's mesh module: importable only after bpy)
     import numpy as np
 
     data = np.load(src)

@@ -39,13 +39,13 @@ DRIVER = textwrap.dedent('''
         builtins.__import__ = hooked
     elif stage == "solve":
         import uvbake.flatten.solve as flatten
-        solve = flatten.levenberg_marquardt
+        solve = flatten.trust_region             # the default step's solver
 
         def marked(*args, **kwargs):
             ready()
             return solve(*args, **kwargs)
 
-        flatten.levenberg_marquardt = marked
+        flatten.trust_region = marked
     elif stage == "write":
         from uvbake.io import atomic
         write = atomic.OutputSet.write_bytes

@@ -27,6 +27,8 @@ a CSC matrix whose pattern (the mesh's vertex adjacency, two unknowns per vertex
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -98,10 +100,7 @@ class DistortionEnergy:
     """
 
     def __init__(self, V, F, *, alpha, weights=None, fixed=None):
-        alpha = float(alpha)
-        if not 0.0 <= alpha <= 1.0 or not np.isfinite(alpha):
-            raise InputError(f"alpha={alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) "
-                             "and 1 (areas only)")
+        alpha = self._check_alpha(alpha)
         self.V = np.asarray(V, dtype=np.float64)
         self.F = np.asarray(F, dtype=np.int64)
         self.alpha = alpha
@@ -119,16 +118,30 @@ class DistortionEnergy:
         self.free_index[~self.fixed] = np.arange(int((~self.fixed).sum()))
         self.n_free = int((~self.fixed).sum())
         self._build_pattern()
-        # constant Hessian of the angle term: 2 (g1 g1^T + g2 g2^T), g1 = [a, -b], g2 = [b, a]
-        self._g1 = np.concatenate([self.a, -self.b], axis=1)                  # (m,6)
-        self._g2 = np.concatenate([self.b, self.a], axis=1)
-        self._H_angle = 2.0 * (np.einsum("mi,mj->mij", self._g1, self._g1)
-                               + np.einsum("mi,mj->mij", self._g2, self._g2))
+        self._g1 = np.concatenate([self.a, -self.b], axis=1)                  # (m,6): grad r1 = [a, -b]
+        self._g2 = np.concatenate([self.b, self.a], axis=1)                   # grad r2 = [b, a]
         # Hess(det): u-v block a_k b_l - b_k a_l and its transpose
-        Huv = np.einsum("mk,ml->mkl", self.a, self.b) - np.einsum("mk,ml->mkl", self.b, self.a)
-        self._H_det = np.zeros((m, 6, 6))
-        self._H_det[:, :3, 3:] = Huv
-        self._H_det[:, 3:, :3] = np.transpose(Huv, (0, 2, 1))
+        self._Huv = np.einsum("mk,ml->mkl", self.a, self.b) - np.einsum("mk,ml->mkl", self.b, self.a)
+        # A = QQ^T x_t: the Jacobian's entries (A11, A12, A21, A22) from the local unknowns
+        self._QQ = np.zeros((m, 6, 4))
+        self._QQ[:, :3, 0], self._QQ[:, :3, 1] = self.a, self.b
+        self._QQ[:, 3:, 2], self._QQ[:, 3:, 3] = self.a, self.b
+        self._angle_cache = None
+
+    def with_alpha(self, alpha: float) -> DistortionEnergy:
+        """The same chart's energy at another alpha (geometry and sparsity pattern shared, not rebuilt)."""
+        other = copy.copy(self)
+        other.alpha = float(DistortionEnergy._check_alpha(alpha))
+        other._angle_cache = None
+        return other
+
+    @staticmethod
+    def _check_alpha(alpha):
+        alpha = float(alpha)
+        if not 0.0 <= alpha <= 1.0 or not np.isfinite(alpha):
+            raise InputError(f"alpha={alpha!r} is outside [0, 1]; pass a weight between 0 (angles only) "
+                             "and 1 (areas only)")
+        return alpha
 
     # -- sparsity pattern, built once ------------------------------------------------------------
     def _build_pattern(self):
@@ -141,6 +154,10 @@ class DistortionEnergy:
         uniq, inverse = np.unique(key, return_inverse=True)
         self._hkeep = keep
         self._hslot = inverse
+        self._all_free = bool(keep.all())
+        slot_full = np.full(len(keep), -1, dtype=np.int64)
+        slot_full[keep] = inverse
+        self._hslot_full = slot_full.reshape(len(fi), 36)                     # (m,36), -1 where fixed
         self._nnz = len(uniq)
         self._indices = (uniq % N).astype(np.int32)
         ucol = uniq // N
@@ -219,10 +236,93 @@ class DistortionEnergy:
         f = float(np.dot(w, al * (det - 1.0) ** 2 + (1.0 - al) * (r1 ** 2 + r2 ** 2)))
         if not hessian:
             return f, g, None
-        H = (2.0 * al * w)[:, None, None] * np.einsum("mi,mj->mij", gdet, gdet)
-        H += ca[:, None, None] * self._H_det
-        H += ((1.0 - al) * w)[:, None, None] * self._H_angle
+        # the part that varies: 2 alpha w gdet gdet^T + ca Hess(det) (Hess(det) lives in the u-v blocks);
+        # the angle term's constant part is added after the scatter (evaluate)
+        sg = np.sqrt(2.0 * al * w)[:, None] * gdet                  # symmetric to the last bit
+        H = sg[:, :, None] * sg[:, None, :]
+        Huv = ca[:, None, None] * self._Huv
+        H[:, :3, 3:] += Huv
+        H[:, 3:, :3] += np.transpose(Huv, (0, 2, 1))
         return f, g, H
+
+    @property
+    def _angle_data(self):
+        """The angle term's Hessian (constant) in the CSC data layout, scattered once."""
+        if self._angle_cache is None:
+            # 2 (1 - alpha) w (g1 g1^T + g2 g2^T)
+            c = np.sqrt(2.0 * (1.0 - self.alpha) * self.w)[:, None]
+            g1, g2 = c * self._g1, c * self._g2
+            self._angle_cache = self._scatter_blocks(g1[:, :, None] * g1[:, None, :] + g2[:, :, None] * g2[:, None, :])
+        return self._angle_cache
+
+    def projection_correction(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """What lifts each triangle's Hessian block h_t (in the Jacobian's coordinates A11, A12, A21,
+        A22) to its projection onto the positive semidefinite cone: the triangles ``rows`` whose block
+        is indefinite and their corrections E (s,4,4), PSD, with h_t^+ = h_t + E (the clamping of Teran
+        et al. 2005, in closed form; H_t = QQ h_t QQ^T, so H_t^+ is PSD as well).
+
+        With the orthonormal conformal pair c1 = (1,0,0,1)/sqrt2, c2 = (0,1,-1,0)/sqrt2, the
+        anticonformal pair n1 = (1,0,0,-1)/sqrt2, n2 = (0,1,1,0)/sqrt2 and
+        A = p1 c1 + p2 c2 + q1 n1 + q2 n2: det = (|p|^2 - |q|^2)/2, grad det = (p, -q), Hess det =
+        diag(1,1,-1,-1), and the angle term's Hessian is 4 (1 - alpha) w on the anticonformal pair. So
+        h = s g g^T + diag(dc, dc, da, da) with s = 2 alpha w, dc = s (det - 1),
+        da = 4 (1 - alpha) w - dc: eigenvalue dc across p in the conformal plane, da across q in the
+        anticonformal one, and a 2x2 block B on (p/|p|, -q/|q|), whose negative part is B itself,
+        lambda_- (B - lambda_+ I) / (lambda_+ - lambda_-) or nothing.
+        """
+        A11, A12, A21, A22 = self._terms(uv)
+        det = A11 * A22 - A12 * A21
+        r = np.sqrt(0.5)
+        p1, p2, q1, q2 = r * (A11 + A22), r * (A12 - A21), r * (A11 - A22), r * (A12 + A21)
+        P2, Q2 = p1 * p1 + p2 * p2, q1 * q1 + q2 * q2
+        s = 2.0 * self.alpha * self.w
+        dc = s * (det - 1.0)
+        da = 4.0 * (1.0 - self.alpha) * self.w - dc
+        x, y, z = dc + s * P2, s * np.sqrt(P2 * Q2), da + s * Q2
+        mean, rad = 0.5 * (x + z), np.hypot(0.5 * (x - z), y)
+        rows = np.flatnonzero((dc < 0) | (da < 0) | (mean < rad))
+        if not len(rows):
+            return rows, np.zeros((0, 4, 4))
+        p1, p2, q1, q2, P2, Q2 = p1[rows], p2[rows], q1[rows], q2[rows], P2[rows], Q2[rows]
+        x, y, z, dc, da = x[rows], y[rows], z[rows], dc[rows], da[rows]
+        lo, hi = mean[rows] - rad[rows], mean[rows] + rad[rows]
+        # unit directions in A-coordinates (arbitrary ones where p or q vanishes)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ip = np.where(P2 > 0, r / np.sqrt(P2), 0.0)
+            iq = np.where(Q2 > 0, r / np.sqrt(Q2), 0.0)
+        ph1, ph2 = np.where(P2 > 0, p1 * ip, r), p2 * ip            # p/|p| on (c1, c2), times r
+        qh1, qh2 = np.where(Q2 > 0, -q1 * iq, r), -q2 * iq          # -q/|q| on (n1, n2), times r
+        b1 = np.stack([ph1, ph2, -ph2, ph1], axis=1)                  # p/|p|
+        b2 = np.stack([qh1, qh2, qh2, -qh1], axis=1)                  # -q/|q|
+        bp = np.stack([-ph2, ph1, -ph1, -ph2], axis=1)                # across p (conformal)
+        bq = np.stack([-qh2, qh1, qh1, qh2], axis=1)                  # across q (anticonformal)
+        # the negative part of B, negated, in the (b1, b2) basis
+        both = hi <= 0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f = np.where(both, -1.0, np.where(lo < 0, lo / (hi - lo), 0.0))
+        shift = np.where(both, 0.0, hi)
+        c11, c12, c22 = f * (x - shift), f * y, f * (z - shift)
+        E = (c11[:, None, None] * (b1[:, :, None] * b1[:, None, :])
+             + c12[:, None, None] * (b1[:, :, None] * b2[:, None, :] + b2[:, :, None] * b1[:, None, :])
+             + c22[:, None, None] * (b2[:, :, None] * b2[:, None, :])
+             + np.maximum(-dc, 0.0)[:, None, None] * (bp[:, :, None] * bp[:, None, :])
+             + np.maximum(-da, 0.0)[:, None, None] * (bq[:, :, None] * bq[:, None, :]))
+        return rows, E
+
+    def projected_hessian(self, uv: np.ndarray, H: sp.csc_matrix,
+                          out: sp.csc_matrix | None = None) -> sp.csc_matrix:
+        """The Hessian with every triangle's block projected onto the PSD cone in the Jacobian's
+        coordinates (``H`` the true one at ``uv``, same pattern; ``out`` refilled in place if given):
+        positive semidefinite always, and equal to H on triangles whose block already is."""
+        rows, E = self.projection_correction(uv)
+        data = H.data.copy()
+        if len(rows):
+            QQ = self._QQ[rows]
+            data += self._scatter_blocks(QQ @ E @ np.transpose(QQ, (0, 2, 1)), rows)
+        if out is None:
+            out = self.empty_matrix()
+        out.data[:] = data
+        return out
 
     def value_and_gradient(self, uv: np.ndarray) -> tuple[float, np.ndarray]:
         """F and its gradient over the free unknowns (interleaved u, v per vertex)."""
@@ -235,11 +335,20 @@ class DistortionEnergy:
     def evaluate(self, uv: np.ndarray, out: sp.csc_matrix | None = None) -> tuple[float, np.ndarray, sp.csc_matrix]:
         """F, gradient and Hessian (CSC, fixed pattern; ``out`` is refilled in place if given)."""
         f, g, H = self._local(uv, hessian=True)
-        data = np.bincount(self._hslot, weights=H.ravel()[self._hkeep], minlength=self._nnz)
+        data = self._scatter_blocks(H)
+        data += self._angle_data
         if out is None:
             out = self.empty_matrix()
         out.data[:] = data
         return f, self._scatter_gradient(g), out
+
+    def _scatter_blocks(self, blocks, rows=None):
+        """Sum per-triangle 6x6 blocks (of all triangles, or of the triangles ``rows``) into the CSC data."""
+        if rows is None and self._all_free:
+            return np.bincount(self._hslot, weights=blocks.ravel(), minlength=self._nnz)
+        slots = (self._hslot_full if rows is None else self._hslot_full[rows]).ravel()
+        keep = slots >= 0
+        return np.bincount(slots[keep], weights=blocks.ravel()[keep], minlength=self._nnz)
 
     def _scatter_gradient(self, g):
         return np.bincount(self._gslot, weights=g.ravel()[self._gkeep], minlength=self.n_free)

@@ -22,6 +22,8 @@ INITS = ("lscm", "tutte", "random", "isomap", "laplacian")
 BACKENDS = ("lm", "lbfgs")
 #: sparse factorisations (:func:`uvbake.flatten.solvers.linalg.make_solver`)
 LINEAR_SOLVERS = ("auto", "cholmod", "superlu")
+#: steps of the second-order backend: the trust-region Newton-CG step, or Levenberg-Marquardt's damped step
+STEPS = ("trust", "damped")
 
 #: alpha of the continuation stage for invalid starts (see :func:`uvbake.flatten.solve.solve_chart`)
 CONTINUATION_ALPHA = 0.1
@@ -60,7 +62,12 @@ class SolveOptions:
     init : {"lscm", "tutte", "random", "isomap", "laplacian"}
         Start map ("random" is seeded by ``seed``).
     backend : {"lm", "lbfgs"}
-        Levenberg-Marquardt with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
+        The second-order solver with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
+    step : {"trust", "damped"}
+        The "lm" backend's step: "trust" (default) a trust-region Newton step by truncated CG
+        preconditioned by the per-triangle PSD projection of the Hessian
+        (:mod:`uvbake.flatten.solvers.trust`); "damped" the paper's Levenberg-Marquardt damping
+        (:mod:`uvbake.flatten.solvers.lm`). Same F, same stopping rule; docs/decisions/solver.md.
     tol : float > 0
         Stop when the scale-free gradient norm is under ``tol``.
     max_iter : int >= 0
@@ -80,6 +87,7 @@ class SolveOptions:
     alpha: float = 0.5
     init: str = "lscm"
     backend: str = "lm"
+    step: str = "trust"
     tol: float = 1e-8
     max_iter: int = 1000
     seed: int = 0
@@ -101,6 +109,8 @@ class SolveOptions:
             raise InputError(f"init={self.init!r} is not one of {_choices(INITS)}")
         if self.backend not in BACKENDS:
             raise InputError(f"backend={self.backend!r} is not one of {_choices(BACKENDS)}")
+        if self.step not in STEPS:
+            raise InputError(f"step={self.step!r} is not one of {_choices(STEPS)}")
         if not (isinstance(self.tol, numbers.Real) and not isinstance(self.tol, bool) and self.tol > 0
                 and math.isfinite(float(min(self.tol, 1e300)))):    # min: ints too large for a float
             raise InputError(f"tol={self.tol!r} must be a positive number (the scale-free gradient norm to reach)")
@@ -119,7 +129,7 @@ class SolveOptions:
 
     def report(self) -> dict[str, Any]:
         """The options as the JSON report lists them."""
-        return dict(alpha=self.alpha, init=self.init, backend=self.backend, tol=self.tol,
+        return dict(alpha=self.alpha, init=self.init, backend=self.backend, step=self.step, tol=self.tol,
                     max_iter=self.max_iter, seed=self.seed, continuation=self.continuation)
 
 

@@ -36,12 +36,16 @@ from uvbake.flatten.energy import DistortionEnergy, optimal_scale
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
-from uvbake.flatten.solvers.linalg import cholmod_available
+from uvbake.flatten.solvers.linalg import cholmod_available, make_solver
 from uvbake.flatten.solvers.lm import levenberg_marquardt
 from uvbake.flatten.solvers.result import ParamResult, SolveResult
+from uvbake.flatten.solvers.trust import trust_region
 from uvbake.flatten.starts import farthest_boundary_pair, initial_map
 from uvbake.mesh.arrays import unit_scale
 from uvbake.mesh.charts import Chart, check_chart
+
+#: alphas of the continuation stages of an invalid start (measured: docs/decisions/solver.md)
+CONTINUATION_SCHEDULE: tuple[float, ...] = (CONTINUATION_ALPHA,)
 
 __all__ = ["parameterize", "parameterize_charts", "solve_chart", "limit_blas_threads", "SolveOptions"]
 
@@ -68,17 +72,21 @@ def _one_blas_thread() -> Iterator[None]:
 
 
 def _run_backend(energy: DistortionEnergy, start: np.ndarray, options: SolveOptions, max_iter: int,
-                 callback: Callback | None) -> tuple[np.ndarray, SolveResult]:
+                 callback: Callback | None, solver: Any = None) -> tuple[np.ndarray, SolveResult]:
+    """One backend run from ``start``; ``solver`` (the chart's, for the Hessian's pattern) is reused."""
     x0 = energy.to_vector(start)
-    if options.backend == "lm":
-        step_limit = None
-        if options.injective and np.all(energy.determinants(start) > 0):
-            from uvbake.atlas.guarantee import determinant_step_limit
+    if options.backend == "lbfgs":
+        return lbfgs(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter, callback=callback)
+    step_limit = None
+    if options.injective and np.all(energy.determinants(start) > 0):
+        from uvbake.atlas.guarantee import determinant_step_limit
 
-            step_limit = determinant_step_limit(energy, start)
-        return levenberg_marquardt(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter,
-                                   linear_solver=options.linear_solver, callback=callback, step_limit=step_limit)
-    return lbfgs(energy, x0, uv_fixed=start, tol=options.tol, max_iter=max_iter, callback=callback)
+        step_limit = determinant_step_limit(energy, start)
+    common = dict(uv_fixed=start, tol=options.tol, max_iter=max_iter, linear_solver=options.linear_solver,
+                  callback=callback, step_limit=step_limit, solver=solver)
+    if options.step == "trust":
+        return trust_region(energy, x0, certificate=options.certificate, **common)
+    return levenberg_marquardt(energy, x0, **common)
 
 
 def _chart_arrays(chart: Chart | Sequence[Any], index: int = 0) -> tuple[np.ndarray, np.ndarray, str]:
@@ -90,7 +98,7 @@ def _chart_arrays(chart: Chart | Sequence[Any], index: int = 0) -> tuple[np.ndar
 
 
 def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, start: np.ndarray | None = None,
-                callback: Callback | None = None) -> ParamResult:
+                callback: Callback | None = None, checked: bool = False) -> ParamResult:
     """Flatten one chart: the work unit any executor runs (a picklable function of picklable data).
 
     Parameters
@@ -101,26 +109,22 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         A start map of your own (overrides ``options.init``), in the surface's units.
     callback : callable, optional
         As in :func:`parameterize`.
+    checked : bool
+        The chart is known to be a disk with holes (:func:`uvbake.mesh.charts.check_chart` passed,
+        as for the pipeline's charts): skip the check.
 
     Does not touch BLAS thread limits (see :func:`limit_blas_threads`).
     """
     t0 = time.perf_counter()
     check_cancelled()
     V, F, name = _chart_arrays(chart)
-    check_chart(V, F, name=name)
+    if not checked:
+        check_chart(V, F, name=name)
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     Vn, unit = unit_scale(V, F)
     alpha = options.alpha
-    if start is not None:
-        start = np.asarray(start, dtype=np.float64)
-        if start.shape != (len(V), 2) or not np.all(np.isfinite(start)):
-            raise InputError(f"{name}: uv0 has shape {start.shape} or non-finite values; pass finite (n,2) UVs")
-        uv_start = start / unit
-        init_name = "given"
-    else:
-        uv_start = initial_map(Vn, F, options.init, seed=options.seed)
-        init_name = options.init
+    uv_start, init_name = _start_map(Vn, F, unit, start, options, name)
 
     fixed = None
     if alpha == 0.0:
@@ -134,25 +138,27 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     if alpha == 0.0 and np.linalg.norm(uv_start[p] - uv_start[q]) == 0:
         uv_start[q] += [np.linalg.norm(Vn[q] - Vn[p]), 0.0]
     f_init = energy.value(uv_start)          # at the target alpha, before any continuation
+    # one symbolic analysis per chart: the continuation's energy has the same pattern (no pins
+    # when alpha > 0.1), and the certificate factors the same Hessian
+    solver = make_solver(energy.empty_matrix(), method=options.linear_solver) if options.backend == "lm" else None
 
-    uv_start, stage = _continuation(Vn, F, energy, uv_start, options, callback)
+    uv_start, stage = _continuation(energy, uv_start, options, callback, solver)
     spent = stage.iterations if stage is not None else 0
-    x, info = _run_backend(energy, uv_start, options, max(options.max_iter - spent, 0), callback)
+    x, info = _run_backend(energy, uv_start, options, max(options.max_iter - spent, 0), callback, solver)
     iterations = info.iterations + spent
     evaluations = info.evaluations + (stage.evaluations if stage is not None else 0)
     history = info.history
     uvn = energy.to_uv(x, uv_start)
-    grad_norm = info.grad_norm
     if alpha == 0.0:
         # the pinned conformal map, scaled to the surface's own area. The pinned problem is linear,
         # so with the pins moved by the same scale its solution is the scaled map: a re-solve from
         # there only polishes the gradient, which the scaling multiplied by s.
         uvn = uvn * optimal_scale(energy, uvn)
-        x, polish = _run_backend(energy, uvn, options, options.max_iter, None)
+        x, info = _run_backend(energy, uvn, options, options.max_iter, None, solver)
         uvn = energy.to_uv(x, uvn)
-        grad_norm = polish.grad_norm
-        iterations += polish.iterations
-        history = np.concatenate([history, polish.history[1:]])
+        iterations += info.iterations
+        history = np.concatenate([history, info.history[1:]])
+    grad_norm = info.grad_norm
     extra: dict[str, Any] = {}
     if "linear_solver" in info.extra:
         extra["linear_solver"] = info.extra["linear_solver"]
@@ -162,7 +168,9 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
     det = energy.determinants(uvn)
-    cert = certify(energy, uvn, linear_solver=options.linear_solver) if options.certificate else None
+    cert = info.extra.get("certificate")      # the trust region's own second-order test, at uvn
+    if cert is None and options.certificate:
+        cert = certify(energy, uvn, linear_solver=options.linear_solver, solver=solver)
     return ParamResult(
         uv=uvn * unit,
         energy=float(DistortionEnergy.value(energy, uvn)),
@@ -185,21 +193,44 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     )
 
 
-def _continuation(Vn: np.ndarray, F: np.ndarray, energy: DistortionEnergy, start: np.ndarray,
-                  options: SolveOptions, callback: Callback | None) -> tuple[np.ndarray, SolveResult | None]:
+def _start_map(Vn: np.ndarray, F: np.ndarray, unit: float, start: np.ndarray | None, options: SolveOptions,
+               name: str) -> tuple[np.ndarray, str]:
+    """The start map in the solver's unit frame, and its name for the report."""
+    if start is None:
+        return initial_map(Vn, F, options.init, seed=options.seed), options.init
+    start = np.asarray(start, dtype=np.float64)
+    if start.shape != (len(Vn), 2) or not np.all(np.isfinite(start)):
+        raise InputError(f"{name}: uv0 has shape {start.shape} or non-finite values; pass finite (n,2) UVs")
+    return start / unit, "given"
+
+
+def _continuation(energy: DistortionEnergy, start: np.ndarray,
+                  options: SolveOptions, callback: Callback | None,
+                  solver: Any = None) -> tuple[np.ndarray, SolveResult | None]:
     """An invalid start (flipped triangles, e.g. init="random") first goes to the nearly convex
-    angle-dominated energy, then on to alpha (docs/decisions/continuation.md)."""
-    if not (options.continuation and options.alpha > CONTINUATION_ALPHA
-            and np.any(energy.determinants(start) <= 0)):
+    angle-dominated energy, then on to alpha (docs/decisions/continuation.md); with more than one
+    stage in CONTINUATION_SCHEDULE, through each alpha below the target in turn."""
+    stages = [a for a in CONTINUATION_SCHEDULE if a < options.alpha]
+    if not (options.continuation and stages and np.any(energy.determinants(start) <= 0)):
         return start, None
-    e_c = DistortionEnergy(Vn, F, alpha=CONTINUATION_ALPHA)
-    x_c, info_c = _run_backend(e_c, start, options, options.max_iter, callback)
-    start = e_c.to_uv(x_c, start)
-    return start * optimal_scale(energy, start), info_c
+    # the stages only have to reach the basin: no second-order test there
+    opts = options.replace(certificate=False)
+    total: SolveResult | None = None
+    for a in stages:
+        e_c = energy.with_alpha(a)
+        spent = total.iterations if total is not None else 0
+        x_c, info = _run_backend(e_c, start, opts, max(options.max_iter - spent, 0), callback, solver)
+        start = e_c.to_uv(x_c, start)
+        if total is not None:
+            info.iterations += total.iterations
+            info.evaluations += total.evaluations
+            info.history = np.concatenate([total.history, info.history[1:]])
+        total = info
+    return start * optimal_scale(energy, start), total
 
 
 def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.init,
-                 backend: str = DEFAULTS.backend, tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter,
+                 backend: str = DEFAULTS.backend, step: str = DEFAULTS.step, tol: float = DEFAULTS.tol, max_iter: int = DEFAULTS.max_iter,
                  seed: int = DEFAULTS.seed, uv0: np.ndarray | None = None, callback: Callback | None = None,
                  linear_solver: str = DEFAULTS.linear_solver, continuation: bool = DEFAULTS.continuation,
                  injective: bool = DEFAULTS.injective, certificate: bool = DEFAULTS.certificate,
@@ -216,11 +247,14 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         Start map. "tutte" needs one boundary loop; "random" is seeded by ``seed``; "isomap" and
         "laplacian" are the paper's Fig. 6 starts (:mod:`uvbake.flatten.starts`).
     backend : {"lm", "lbfgs"}
-        Levenberg-Marquardt with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
+        The second-order solver with the full Hessian, or nlopt's L-BFGS on the same F and gradient.
+    step : {"trust", "damped"}
+        The "lm" backend's step: a trust-region Newton-CG step (default) or the paper's
+        Levenberg-Marquardt damping (see :class:`~uvbake.flatten.options.SolveOptions`).
     tol : float
         Stop when the scale-free gradient norm is under ``tol``.
     max_iter : int
-        Iteration cap (LM: factorisations, rejected steps included).
+        Iteration cap (factorisations and trial steps, rejected ones included).
     seed : int
         Seed of the random start.
     uv0 : (n,2) float array, optional
@@ -245,7 +279,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         ``uv (n,2)`` in the surface's length units, ``energy`` (the paper's F at uv), ``grad_norm``,
         ``iterations``, ``converged``, ``n_flipped``, ``history``, ``time_s``, ``status``.
     """
-    options = SolveOptions(alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
+    options = SolveOptions(alpha=alpha, init=init, backend=backend, step=step, tol=tol, max_iter=max_iter, seed=seed,
                            linear_solver=linear_solver, continuation=continuation, injective=injective,
                            certificate=certificate)
     if callback is not None and not callable(callback):
@@ -257,7 +291,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
 def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int | None = None,
                         progress: Progress | None = None, starts: Sequence[np.ndarray | None] | None = None,
                         executor: Executor | None = None, options: SolveOptions | None = None,
-                        callback: Callback | None = None, **option_values: Any) -> list[ParamResult]:
+                        callback: Callback | None = None, checked: bool = False,
+                        **option_values: Any) -> list[ParamResult]:
     """Parameterize several charts independently, in parallel.
 
     Parameters
@@ -276,6 +311,8 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
         The solve options; or give them as keywords (alpha, init, backend, tol, max_iter, seed, ...).
     callback : callable, optional
         Passed to every solve (see :func:`parameterize`).
+    checked : bool
+        Every chart already passed :func:`uvbake.mesh.charts.check_chart` (see :func:`solve_chart`).
 
     Returns
     -------
@@ -286,11 +323,9 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
     elif option_values:
         options = options.replace(**option_values)
     items = [_chart_arrays(c, i) for i, c in enumerate(charts)]
-    if not items:
-        return []
     if workers is not None and (not _whole(workers) or workers < 1):
         raise InputError(f"workers={workers!r} must be a positive integer (threads solving charts)")
-    workers = int(workers or min(os.cpu_count() or 1, len(items)))
+    workers = int(workers or min(os.cpu_count() or 1, max(len(items), 1)))
     results: list[ParamResult | None] = [None] * len(items)
     done = 0
 
@@ -301,27 +336,32 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
         if progress:
             progress(done, len(items), res)
 
-    def start_of(i: int) -> np.ndarray | None:
-        return None if starts is None else starts[i]
-
+    jobs = [(i, (items[i], options, None if starts is None else starts[i], callback, checked))
+            for i in range(len(items))]
     # BLAS pools are process-wide: limit them once here, around every solve of this process
     with _one_blas_thread():
-        if executor is None and (workers <= 1 or len(items) == 1):
-            for i in range(len(items)):
-                finish(i, solve_chart(items[i], options, start_of(i), callback))
+        if executor is None and (workers <= 1 or len(items) <= 1):
+            for i, args in jobs:
+                finish(i, solve_chart(*args))
         else:
-            with contextlib.ExitStack() as stack:
-                pool = executor or stack.enter_context(ThreadPoolExecutor(max_workers=workers))
-                # largest charts first so the pool stays busy
-                order = sorted(range(len(items)), key=lambda i: -len(items[i][1]))
-                futures = {pool.submit(solve_chart, items[i], options, start_of(i), callback): i for i in order}
-                try:
-                    for fut in as_completed(futures):
-                        finish(futures[fut], fut.result())
-                except BaseException:
-                    # a chart failed or the run was stopped (a callback raised, Ctrl-C): charts not
-                    # yet started are dropped instead of solved before the error reaches the caller
-                    for fut in futures:
-                        fut.cancel()
-                    raise
+            # largest charts first so the pool stays busy
+            jobs.sort(key=lambda job: -len(items[job[0]][1]))
+            _run_pool(jobs, executor, workers, finish)
     return [r for r in results if r is not None]
+
+
+def _run_pool(jobs: list[tuple[int, tuple[Any, ...]]], executor: Executor | None, workers: int,
+              finish: Callable[[int, ParamResult], None]) -> None:
+    """:func:`solve_chart` of every job on ``executor`` (default a pool of ``workers`` threads)."""
+    with contextlib.ExitStack() as stack:
+        pool = executor or stack.enter_context(ThreadPoolExecutor(max_workers=workers))
+        futures = {pool.submit(solve_chart, *args): i for i, args in jobs}
+        try:
+            for fut in as_completed(futures):
+                finish(futures[fut], fut.result())
+        except BaseException:
+            # a chart failed or the run was stopped (a callback raised, Ctrl-C): charts not
+            # yet started are dropped instead of solved before the error reaches the caller
+            for fut in futures:
+                fut.cancel()
+            raise

@@ -1,7 +1,8 @@
-"""Solver backends for one chart: Levenberg-Marquardt (lm), nlopt L-BFGS (lbfgs), their linear algebra."""
+"""Solver backends for one chart: trust-region Newton-CG (trust), Levenberg-Marquardt (lm), nlopt L-BFGS (lbfgs),
+their linear algebra and the second-order certificate."""
 
 from uvbake._lazy import lazy_getattr
 
-_SUBMODULES = ("result", "lm", "lbfgs", "linalg")
+_SUBMODULES = ("result", "trust", "lm", "lbfgs", "linalg", "certificate")
 __getattr__ = lazy_getattr(__name__, {m: f"{__name__}.{m}" for m in _SUBMODULES})
 __all__ = list(_SUBMODULES)

@@ -17,7 +17,7 @@ Values are those of the solver's scale-free frame (mesh and map at unit mean edg
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -45,6 +45,9 @@ class Certificate:
     is_local_minimum: bool     # lambda_min >= -NEGATIVE_TOL * hmax (with the gradient test done by the caller)
     gauge_dim: int             # directions set aside (3 when nothing is pinned, 0 when pinned)
     hmax: float                # max |diag H|, the scale of the threshold
+    factorisations: int = 1    # of H - sigma I (the shift search included; 0 for tiny charts)
+    # unit eigenvector of lambda_min over the free unknowns (the saddle escape's direction)
+    vector: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         return dict(lambda_min=self.lambda_min, is_local_minimum=self.is_local_minimum,
@@ -65,12 +68,18 @@ def gauge_basis(energy: DistortionEnergy, uv: np.ndarray) -> np.ndarray:
     B[1::2, 2] = c[:, 0]
     if np.linalg.norm(c) == 0:          # the collapsed map: rotation moves nothing
         B = B[:, :2]
-    q, _ = np.linalg.qr(B)
-    return q
+    # the columns are already orthogonal (c is centred): normalise them
+    return B / np.linalg.norm(B, axis=0)
 
 
-def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "auto", H: Any = None) -> Certificate:
-    """The :class:`Certificate` of ``uv`` (per-vertex UVs in the energy's frame)."""
+def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "auto", H: Any = None,
+            solver: Any = None) -> Certificate:
+    """The :class:`Certificate` of ``uv`` (per-vertex UVs in the energy's frame).
+
+    ``H`` is the Hessian at ``uv`` if already evaluated; ``solver`` a solver from
+    :func:`~uvbake.flatten.solvers.linalg.make_solver` for H's pattern (the one LM or the trust region
+    used: its symbolic analysis is reused) or None for a fresh one.
+    """
     if H is None:
         _, _, H = energy.evaluate(uv)
     N = gauge_basis(energy, uv)
@@ -78,21 +87,17 @@ def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "a
     hmax = float(np.max(np.abs(diag))) if len(diag) else 1.0
     n = H.shape[0]
     if n <= 12:                          # tiny charts: a dense eigen-decomposition
-        P = np.eye(n) - N @ N.T
-        lam = np.linalg.eigvalsh(P @ H.toarray() @ P)
-        # the gauge directions appear as zeros; take the rest
-        lam = np.sort(lam)
-        rest = np.delete(lam, np.argsort(np.abs(lam))[:N.shape[1]]) if N.shape[1] else lam
-        lmin = float(rest.min())
-        return Certificate(lmin, lmin >= -NEGATIVE_TOL * hmax, N.shape[1], hmax)
-    solver = make_solver(H, method=linear_solver)
+        return _dense_certificate(H, N, hmax)
+    solver = solver or make_solver(H, method=linear_solver)
     shift = FIRST_SHIFT * hmax
+    factorisations = 1
     while True:
         try:
             solver.factor(H, shift)                  # H - sigma I with sigma = -shift
             break
         except NotPositiveDefinite:
             shift *= 4.0
+            factorisations += 1
             if shift > 1e12 * max(hmax, 1.0):
                 raise
     # Lanczos on P (H + shift I)^-1 P, P the projector off the gauge: its largest eigenvalue mu gives
@@ -104,6 +109,20 @@ def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "a
 
     op = spla.LinearOperator(H.shape, matvec=apply, dtype=np.float64)
     v0 = np.random.default_rng(0).standard_normal(n)     # seeded: same input, same bytes
-    mu = spla.eigsh(op, k=1, which="LA", v0=v0, tol=LANCZOS_TOL, return_eigenvectors=False)
+    mu, vec = spla.eigsh(op, k=1, which="LA", v0=v0, tol=LANCZOS_TOL)
     lmin = float(1.0 / mu[0] - shift)
-    return Certificate(lmin, lmin >= -NEGATIVE_TOL * hmax, N.shape[1], hmax)
+    v = vec[:, 0] / np.linalg.norm(vec[:, 0])
+    return Certificate(lmin, lmin >= -NEGATIVE_TOL * hmax, N.shape[1], hmax, factorisations, v)
+
+
+def _dense_certificate(H, N, hmax):
+    n = H.shape[0]
+    P = np.eye(n) - N @ N.T
+    lam, vec = np.linalg.eigh(P @ H.toarray() @ P)
+    # the gauge directions appear as zeros: set them aside by their overlap with the gauge
+    keep = np.ones(n, bool)
+    if N.shape[1]:
+        keep[np.argsort(-np.linalg.norm(N.T @ vec, axis=0))[:N.shape[1]]] = False
+    k = np.flatnonzero(keep)[np.argmin(lam[keep])]
+    lmin = float(lam[k])
+    return Certificate(lmin, lmin >= -NEGATIVE_TOL * hmax, N.shape[1], hmax, 0, vec[:, k])

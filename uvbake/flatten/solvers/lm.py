@@ -15,13 +15,18 @@ symbolic factorisation is computed once. Constants: docs/decisions/lm-damping.md
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
 from uvbake.flatten.solvers.result import SolveResult, Status
+
+if TYPE_CHECKING:
+    from uvbake.flatten.energy import DistortionEnergy
 
 # Damping constants, chosen by measurement (docs/decisions/lm-damping.md, bench/solver.py).
 # MIN_SHRINK: an accepted step lowers lambda at most tenfold. Damping memory: after an accepted step
@@ -41,8 +46,11 @@ SADDLE_EPS = 1e-9
 MAX_ESCAPES = 20
 
 
-def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0=None,
-                        linear_solver="auto", callback=None, step_limit=None):
+def levenberg_marquardt(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarray, tol: float = 1e-8,
+                        max_iter: int = 500, lambda0: float | None = None, linear_solver: str = "auto",
+                        callback: Callable[[dict[str, Any]], Any] | None = None,
+                        step_limit: Callable[[np.ndarray, np.ndarray], float] | None = None,
+                        solver: Any = None) -> tuple[np.ndarray, SolveResult]:
     """Minimise ``energy`` (a :class:`uvbake.flatten.energy.DistortionEnergy`) from the free unknowns ``x0``.
 
     Parameters
@@ -61,11 +69,13 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
     callback : callable, optional
         Called after every iteration with a dict (iteration, energy, grad_norm, damping, accepted);
         returning True stops the solve.
-
     step_limit : callable, optional
         ``step_limit(x, delta) -> t`` in (0, 1]: the largest fraction of ``delta`` that may be taken
         (the injective solve of :mod:`uvbake.atlas.guarantee` keeps every det A > 0 this way). Each
         step, and each saddle escape, is shortened to it.
+    solver : optional
+        A solver of :func:`~uvbake.flatten.solvers.linalg.make_solver` for the Hessian's pattern,
+        whose symbolic analysis is reused (default: a new one).
 
     Returns
     -------
@@ -74,96 +84,110 @@ def levenberg_marquardt(energy, x0, *, uv_fixed, tol=1e-8, max_iter=500, lambda0
         ``extra`` holds the linear solver used and the number of saddle escapes.
     """
     t0 = time.perf_counter()
-    x = np.array(x0, dtype=np.float64)
-    H = energy.empty_matrix()
-    f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
-    n_eval = 1
-    solver = make_solver(H, method=linear_solver)
-    diag = energy.diagonal_slots
-    gnorm = float(np.linalg.norm(g))
-    hmax = float(np.max(np.abs(H.data[diag]))) if len(diag) else 1.0
-    lam = (TAU * hmax if lambda0 is None else float(lambda0)) or 1e-12
-    lam_min = 1e-15 * max(hmax, 1e-300)
-    nu = 2.0
-    lam_indef = 0.0
-    escapes = 0
-    history = [f]
-    zero_uv = np.zeros_like(uv_fixed)
-    it = 0
-    stop = Status.MAX_ITER
-    if not np.isfinite(f):
-        stop = Status.NON_FINITE_START
-    while it < max_iter and stop == Status.MAX_ITER:
+    s = _LMState(energy, np.array(x0, dtype=np.float64), uv_fixed, step_limit, solver or linear_solver)
+    lam = _first_damping(lambda0, s.hmax)
+    lam_min = 1e-15 * max(s.hmax, 1e-300)
+    nu, lam_indef = 2.0, 0.0
+    stop = Status.MAX_ITER if np.isfinite(s.f) else Status.NON_FINITE_START
+    if stop == Status.MAX_ITER and max_iter > 0 and s.gnorm < tol:
+        # a start that is already stationary still gets the second-order test
+        lam = max(lam, s.second_order_test())
+    while s.it < max_iter and stop == Status.MAX_ITER:
         check_cancelled()                            # SIGINT/SIGTERM: stop within one iteration
-        if gnorm < tol and it == 0:
-            # a start that is already stationary still gets the second-order test
-            out = _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax, step_limit)
-            it += out["factorisations"]
-            history.extend([f] * out["factorisations"])
-            if out["x"] is None:
-                stop = Status.CONVERGED
-                break
-            escapes += 1
-            x = out["x"]
-            f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
-            gnorm = float(np.linalg.norm(g))
-            history[-1] = f
-            continue
-        it += 1
-        accepted = False
-        step = _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv, step_limit)
-        indefinite = step is None          # H + lambda I was not positive definite (or the step not finite)
-        reason = "indefinite" if step is None else step.reason     # for the callback only
-        if step is not None:
-            n_eval += step.evaluations
-            rho, delta = step.rho, step.delta
-            if step.actual > 0 and (rho > 0 or step.backtracked):
-                accepted = True
-                x = step.x_new
-                f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
-                gnorm = float(np.linalg.norm(g))
-                lam = max(lam * max(MIN_SHRINK, 1.0 - (2.0 * rho - 1.0) ** 3), lam_min,
-                          INDEF_MARGIN * lam_indef)
-                lam_indef *= INDEF_DECAY
-                nu = 2.0
-                if np.linalg.norm(delta) <= 1e-15 * (1.0 + np.linalg.norm(x)):
-                    stop = Status.STEP_TOO_SMALL
-        if not accepted:
-            if indefinite:
-                # remember where H + lambda I stopped being positive definite, and jump well past it
-                lam_indef = max(lam_indef, lam)
-                lam *= INDEF_JUMP
-            else:
-                lam *= nu
-                nu *= 2.0
-            if lam > 1e30 * max(hmax, 1.0):
-                stop = Status.DAMPING_DIVERGED
-        history.append(f)
-        if gnorm < tol:
-            if escapes < MAX_ESCAPES:
-                out = _escape_saddle(energy, x, f, H, solver, uv_fixed, zero_uv, hmax, step_limit)
-                it += out["factorisations"]
-                n_eval += out["evaluations"]
-                history.extend([f] * out["factorisations"])
-                if out["x"] is not None:
-                    escapes += 1
-                    x = out["x"]
-                    f, g, H = energy.evaluate(energy.to_uv(x, uv_fixed), out=H)
-                    gnorm = float(np.linalg.norm(g))
-                    lam = max(lam, out["shift"])
-                    nu = 2.0
-                    history[-1] = f
-                    continue
+        if s.gnorm < tol:
             stop = Status.CONVERGED
-        if callback is not None and callback(dict(iteration=it, energy=f, grad_norm=gnorm,
-                                                  damping=lam, accepted=accepted,
-                                                  reason=reason)):
-            stop = Status.CALLBACK if stop == Status.MAX_ITER else stop
             break
-    return x, SolveResult(energy=float(f), grad_norm=gnorm, iterations=it, evaluations=n_eval,
-                          converged=bool(gnorm < tol), history=np.asarray(history), status=stop,
-                          solve_time_s=time.perf_counter() - t0,
-                          extra=dict(linear_solver=solver.name, saddle_escapes=escapes))
+        s.it += 1
+        step = _step(energy, s.x, s.g, s.H, lam, s.solver, uv_fixed, s.zero_uv, step_limit)
+        accepted = s.take(step)
+        lam, nu, lam_indef = _damping(lam, nu, lam_indef, step, accepted, lam_min)
+        stop = s.stop_after(step, accepted, lam)
+        if s.gnorm < tol and s.escapes < MAX_ESCAPES and stop == Status.MAX_ITER:
+            shift = s.second_order_test()
+            lam, nu = (max(lam, shift), 2.0) if shift else (lam, nu)
+        if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=lam,
+                                                  accepted=accepted, reason=_reason(step))):
+            stop = Status.CALLBACK if stop == Status.MAX_ITER else stop
+    if stop == Status.MAX_ITER and s.gnorm < tol:
+        stop = Status.CONVERGED
+    return s.x, SolveResult(energy=float(s.f), grad_norm=s.gnorm, iterations=s.it, evaluations=s.n_eval,
+                            converged=bool(s.gnorm < tol), history=np.asarray(s.history), status=stop,
+                            solve_time_s=time.perf_counter() - t0,
+                            extra=dict(linear_solver=s.solver.name, saddle_escapes=s.escapes))
+
+
+def _first_damping(lambda0, hmax):
+    return (TAU * hmax if lambda0 is None else float(lambda0)) or 1e-12
+
+
+def _reason(step):
+    """For the callback only."""
+    return "indefinite" if step is None else step.reason
+
+
+def _damping(lam, nu, lam_indef, step, accepted, lam_min):
+    """Nielsen's update with the indefiniteness memory: the new (lambda, nu, lambda_indef)."""
+    if accepted:
+        lam = max(lam * max(MIN_SHRINK, 1.0 - (2.0 * step.rho - 1.0) ** 3), lam_min, INDEF_MARGIN * lam_indef)
+        return lam, 2.0, lam_indef * INDEF_DECAY
+    if step is None:
+        # H + lambda I was not positive definite: remember where, and jump well past it
+        return lam * INDEF_JUMP, nu, max(lam_indef, lam)
+    return lam * nu, nu * 2.0, lam_indef
+
+
+class _LMState:
+    """LM's iterate, what is known there, and its counters."""
+
+    def __init__(self, energy, x, uv_fixed, step_limit, solver):
+        self.energy, self.uv_fixed, self.step_limit = energy, uv_fixed, step_limit
+        self.zero_uv = np.zeros_like(uv_fixed)
+        self.H = energy.empty_matrix()
+        self.it, self.n_eval, self.escapes = 0, 0, 0
+        self.history = []
+        self.move(x)
+        self.history.append(self.f)
+        self.solver = make_solver(self.H, method=solver) if isinstance(solver, str) else solver
+        diag = energy.diagonal_slots
+        self.hmax = float(np.max(np.abs(self.H.data[diag]))) if len(diag) else 1.0
+
+    def take(self, step):
+        """Move to an accepted step; whether it was. The history gets F either way."""
+        accepted = step is not None and step.accepted
+        self.n_eval += step.evaluations if step is not None else 0
+        if accepted:
+            self.move(step.x_new)
+        self.history.append(self.f)
+        return accepted
+
+    def move(self, x):
+        self.x = x
+        self.f, self.g, _ = self.energy.evaluate(self.energy.to_uv(x, self.uv_fixed), out=self.H)
+        self.n_eval += 1
+        self.gnorm = float(np.linalg.norm(self.g))
+
+    def stop_after(self, step, accepted, lam):
+        """The status after an iteration: MAX_ITER to go on."""
+        if accepted and np.linalg.norm(step.delta) <= 1e-15 * (1.0 + np.linalg.norm(self.x)):
+            return Status.STEP_TOO_SMALL
+        if not accepted and lam > 1e30 * max(self.hmax, 1.0):
+            return Status.DAMPING_DIVERGED
+        return Status.MAX_ITER
+
+    def second_order_test(self):
+        """At a stationary point: leave it along negative curvature if it is a saddle. Returns the
+        shift where H + shift I became positive definite after an escape, else 0."""
+        out = _escape_saddle(self.energy, self.x, self.f, self.H, self.solver, self.uv_fixed, self.zero_uv,
+                             self.hmax, self.step_limit)
+        self.it += out["factorisations"]
+        self.n_eval += out["evaluations"]
+        self.history.extend([self.f] * out["factorisations"])
+        if out["x"] is None:
+            return 0.0
+        self.escapes += 1
+        self.move(out["x"])
+        self.history[-1] = self.f
+        return out["shift"]
 
 
 @dataclass
@@ -175,6 +199,10 @@ class _Step:
     backtracked: bool
     evaluations: int
     reason: str
+
+    @property
+    def accepted(self):
+        return self.actual > 0 and (self.rho > 0 or self.backtracked)
 
 
 def _step(energy, x, g, H, lam, solver, uv_fixed, zero_uv, step_limit=None):

@@ -1,0 +1,125 @@
+"""The trust-region Newton-CG step (uvbake.flatten.solvers.trust): the projected Hessian, the Steihaug
+step, the iteration bound it brings, the saddle escape through the certificate, and the certificate's
+reuse of the solver's symbolic analysis."""
+
+import numpy as np
+import pytest
+
+from uvbake.flatten.energy import DistortionEnergy, triangle_frames
+from uvbake.flatten.solve import parameterize
+from uvbake.flatten.solvers.certificate import certify
+from uvbake.flatten.solvers.linalg import make_solver
+from uvbake.flatten.solvers.trust import SHIFT, steihaug
+from uvbake.flatten.starts import initial_map
+from uvbake.mesh.arrays import unit_scale
+
+from meshgen import bumpy_disk
+
+
+def _eig(M):
+    return np.linalg.eigvalsh(M.toarray() if hasattr(M, "toarray") else M)
+
+
+@pytest.mark.parametrize("alpha", [0.1, 0.5, 0.9, 1.0])
+def test_projected_hessian_is_each_triangles_block_lifted_to_the_psd_cone(alpha):
+    rng = np.random.default_rng(7)
+    V = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.2], [0.3, 1.0, 0.1]])
+    E = DistortionEnergy(V, np.array([[0, 1, 2]]), alpha=alpha)
+    iso = triangle_frames(V, np.array([[0, 1, 2]]))[0][0].T       # the isometric map: det A = 1
+    already_psd = 0
+    for k in range(200):
+        uv = rng.normal(size=(3, 2)) * rng.uniform(0.1, 3.0) if k % 2 else iso + 0.02 * (k % 4) * rng.normal(size=(3, 2))
+        _, _, H = E.evaluate(uv)
+        Hp = E.projected_hessian(uv, H)
+        scale = np.abs(_eig(H)).max()
+        tol = 1e-12 * scale
+        assert _eig(Hp).min() >= -tol                       # positive semidefinite
+        assert _eig(Hp - H).min() >= -tol                   # only lifted, never lowered
+        if _eig(H).min() >= -tol:                           # a PSD block is left as it is
+            already_psd += 1
+            np.testing.assert_allclose(Hp.toarray(), H.toarray(), atol=1e-10 * scale)
+    assert already_psd > 0
+
+
+def _indefinite_chart():
+    V, F = bumpy_disk(12)
+    Vn, _ = unit_scale(V, F)
+    E = DistortionEnergy(Vn, F, alpha=0.9)
+    uv = initial_map(Vn, F, "random", seed=1)
+    _, g, H = E.evaluate(uv)
+    assert _eig(H).min() < 0
+    Hp = E.projected_hessian(uv, H)
+    mu = SHIFT * np.abs(H.diagonal()).max()
+    solver = make_solver(H)
+    solver.factor(Hp, mu)
+    M = Hp.toarray() + mu * np.eye(H.shape[0])
+    return g, H, M, solver
+
+
+def test_steihaug_step_decreases_the_model_and_stays_in_the_region():
+    g, H, M, solver = _indefinite_chart()
+    for delta in (1e-3, 1e-1, 1.0, 1e3):
+        p, boundary, _ = steihaug(H, g, solver.solve, delta, eta=1e-10, max_cg=200)
+        model = g @ p + 0.5 * p @ (H @ p)
+        assert model < 0                                   # m(p) < m(0) = 0
+        assert np.sqrt(p @ M @ p) <= delta * (1 + 1e-9)    # inside ||p||_M <= delta
+        if boundary:
+            assert np.sqrt(p @ M @ p) == pytest.approx(delta, rel=1e-9)
+    # the model is indefinite: with a huge radius CG meets negative curvature and stops on the boundary
+    p, boundary, _ = steihaug(H, g, solver.solve, 1e3, eta=1e-10, max_cg=500)
+    assert boundary
+
+
+def test_steihaug_gives_the_newton_step_where_the_model_is_convex():
+    # alpha = 0 with two pinned vertices: F is a positive definite quadratic, H+ = H, and one
+    # preconditioned CG step is the Newton step
+    V, F = bumpy_disk(8)
+    Vn, _ = unit_scale(V, F)
+    fixed = np.zeros(2 * len(V), bool)
+    fixed[[0, 1, 2 * (len(V) - 1), 2 * len(V) - 1]] = True
+    E = DistortionEnergy(Vn, F, alpha=0.0, fixed=fixed)
+    uv = np.random.default_rng(0).normal(size=(len(V), 2))
+    _, g, H = E.evaluate(uv)
+    Hp = E.projected_hessian(uv, H)
+    np.testing.assert_array_equal(Hp.toarray(), H.toarray())
+    solver = make_solver(H)
+    solver.factor(Hp, 0.0)
+    p, boundary, j = steihaug(H, g, solver.solve, 1e6, eta=1e-12, max_cg=200)
+    assert not boundary and j <= 2
+    newton = np.linalg.solve(H.toarray(), -g)
+    np.testing.assert_allclose(p, newton, rtol=1e-9, atol=1e-9 * np.abs(newton).max())
+
+
+def test_flipped_random_start_converges_within_the_tightened_bound_to_the_same_minimum():
+    # measured: the damped (Levenberg-Marquardt) step takes 32 iterations here (27 in the alpha-0.1
+    # continuation), the trust-region step 17
+    V, F = bumpy_disk(24)
+    trust = parameterize(V, F, alpha=0.5, init="random")
+    damped = parameterize(V, F, alpha=0.5, init="random", step="damped")
+    assert trust.converged and damped.converged and trust.is_local_minimum
+    assert trust.iterations <= 22
+    assert trust.energy == pytest.approx(damped.energy, rel=1e-9)
+
+
+def test_a_start_at_a_saddle_is_left_along_the_certificates_eigenvector():
+    # the collapsed map is stationary (grad F = 0) and a saddle of F for alpha > 0
+    V, F = bumpy_disk(10)
+    zero = np.zeros((len(V), 2))
+    r = parameterize(V, F, alpha=0.5, uv0=zero, continuation=False)
+    assert r.converged and r.is_local_minimum and r.lambda_min > 0
+    assert r.energy < r.energy_init
+    assert r.energy == pytest.approx(parameterize(V, F, alpha=0.5).energy, rel=1e-9)
+
+
+def test_certificate_on_the_solvers_own_symbolic_analysis_equals_a_fresh_one():
+    V, F = bumpy_disk(12)
+    Vn, _ = unit_scale(V, F)
+    E = DistortionEnergy(Vn, F, alpha=0.5)
+    r = parameterize(Vn, F, alpha=0.5)
+    solver = make_solver(E.empty_matrix())
+    _, _, H = E.evaluate(r.uv)
+    solver.factor(E.projected_hessian(r.uv, H), 1.0)        # the solver has been used for other matrices
+    shared = certify(E, r.uv, solver=solver)
+    fresh = certify(E, r.uv)
+    assert shared.lambda_min == pytest.approx(fresh.lambda_min, rel=1e-6)
+    assert shared.is_local_minimum and r.lambda_min == pytest.approx(fresh.lambda_min, rel=1e-6)
