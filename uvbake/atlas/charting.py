@@ -400,6 +400,13 @@ class _Charting:
     budget_cuts: list = dataclasses.field(default_factory=list)
     over: list = dataclasses.field(default_factory=list)
     solves: int = 0
+    solved_triangles: int = 0        # triangles of every conformal solve (the stage's work count)
+
+    def conformal(self, chart, frames=None):
+        """:func:`conformal_factor` of ``chart``, counted."""
+        self.solves += 1
+        self.solved_triangles += len(chart.F)
+        return conformal_factor(chart.V, chart.F, frames=frames)
 
     def full(self):
         return self.max_charts is not None and len(self.done) + len(self.queue) + 1 >= self.max_charts
@@ -436,15 +443,14 @@ def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
     for i, c in enumerate(st.done):
         c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
     return st.done, st.starts, dict(cuts=cuts, budget_cuts=st.budget_cuts, over_budget=st.over,
-                                    conformal_solves=st.solves)
+                                    conformal_solves=st.solves, conformal_triangles=st.solved_triangles)
 
 
 def _decide(st, chart, previous):
     """One conformal solve of ``chart``: keep it (within the budget, or a work count says stop), or
     slit it (while slits pay: the least factor at least doubles; a slit adds no chart), or cut it."""
     frames = _frames(chart.V, chart.F)
-    uv, logf = conformal_factor(chart.V, chart.F, frames=frames)
-    st.solves += 1
+    uv, logf = st.conformal(chart, frames)
     ok = bool(np.all(np.isfinite(logf)) and logf.min() >= -st.bound)
     small = len(chart.F) < 2 * MIN_PIECE_FACES
     if ok or small or st.full() or st.solves >= st.budget_solves:
