@@ -34,7 +34,6 @@ def merge_back(st: _Charting) -> None:
     first, each tried against its MERGE_TRIES neighbours of the same label with the longest shared
     border; a merged chart is tried again later as a whole. Counted work: at most MERGE_TRIES
     attempts per chart, never time."""
-    from uvbake.atlas.charting import conformal_factor
     from uvbake.atlas.guarantee import area_factors, overlapping_pairs
 
     serial = list(range(len(st.done)))                 # identity of each chart (merged ones get new numbers)
@@ -52,8 +51,7 @@ def merge_back(st: _Charting) -> None:
         merged = join_charts(st.done[i], st.done[j], cache)
         if merged is None:
             continue
-        uv, logf = conformal_factor(merged.V, merged.F)
-        st.solves += 1
+        uv, logf = st.conformal(merged)
         # within half the budget (in log terms), or no worse than the worse of the two: the LM moves
         # factors after the merge (camelhead at alpha 0: least share 0.19 against 0.31 with the whole budget)
         floor = min(-MERGE_SHARE_OF_BUDGET * st.bound, np.log(min(least[i], least[j])))

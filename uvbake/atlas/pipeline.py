@@ -279,7 +279,8 @@ def _stage_charts(run):
         run.charts, cuts = disk_charts(run.V, run.F, run.labels, auto_cut=opts["auto_cut"])
         for i, c in enumerate(run.charts):
             c.name = f"chart {i}" + (f" (label {c.label})" if c.label >= 0 else "")
-        run.starts, run.chart_log = None, dict(cuts=cuts, budget_cuts=[], over_budget=[], conformal_solves=0)
+        run.starts, run.chart_log = None, dict(cuts=cuts, budget_cuts=[], over_budget=[], conformal_solves=0,
+                                                    conformal_triangles=0)
         run.note("charts", len(run.charts), len(run.charts))
     run.n_charts_input = len(run.charts)
     run.timings["charts_s"] = time.perf_counter() - t

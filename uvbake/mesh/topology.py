@@ -92,8 +92,11 @@ def nonmanifold_vertices(F: ArrayLike, n: int) -> np.ndarray:
     cols = np.concatenate([match_a_j, match_b_j])
     g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
     _, lab = connected_components(g, directed=False)
-    vc = np.unique(np.stack([F.ravel(), lab], axis=1), axis=0)
-    counts = np.bincount(vc[:, 0], minlength=n)
+    # distinct (vertex, fan) pairs as one int64 key: np.unique over rows (axis=0) sorts a structured
+    # view, 5-10x slower than this 1-D sort
+    nf = int(lab.max()) + 1 if len(lab) else 1
+    vc = np.unique(F.ravel() * nf + lab)
+    counts = np.bincount(vc // nf, minlength=n)
     return np.flatnonzero(counts > 1)
 
 
