@@ -7,13 +7,13 @@ Distances are checked with test_pack's independent helpers (vertex-triangle dist
 
 import numpy as np
 import pytest
+from test_shapepack import mixed_charts
 
 from uvbake.atlas.compact import compact
 from uvbake.atlas.fit import _layout_box, scale_to_border
 from uvbake.atlas.shapepack import ShapePacker
 
 from test_pack import min_gap
-from test_shapepack import mixed_charts
 
 
 def placed(packer, p):
