@@ -16,7 +16,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from uvbake.atlas.shapepack import _EPS, ShapePacking, _Atlas, _dilate, _free_runs, _raw_runs, _runs, footprint
+from uvbake.atlas.shapepack import (
+    _EPS,
+    ShapePacker,
+    ShapePacking,
+    _Atlas,
+    _dilate,
+    _free_runs,
+    _raw_runs,
+    _runs,
+    footprint,
+)
 
 
 def _placed_footprint(packer, i, density, theta, offset):
@@ -129,7 +139,8 @@ def _layout(packer, p, width, height, gutter_px):
     return fps, dil, xy, grid
 
 
-def slide(fps, dil, xy, grid, g, passes=2):
+def slide(fps: list[np.ndarray], dil: list[np.ndarray], xy: np.ndarray, grid: _Grid, g: int,
+          passes: int = 2) -> None:
     """Slides every chart (footprints ``fps``, dilated ``dil``, corners ``xy``, updated in place) down,
     then left, as far as free texels allow, bottom edges first, ``passes`` times over all charts (fewer
     when nothing moves). Needs the grid's row tables fresh; leaves them fresh."""
@@ -156,7 +167,8 @@ def slide(fps, dil, xy, grid, g, passes=2):
             break
 
 
-def lower_far_edge(fps, dil, xy, grid, g, steps=50):
+def lower_far_edge(fps: list[np.ndarray], dil: list[np.ndarray], xy: np.ndarray, grid: _Grid, g: int,
+                   steps: int = 50) -> None:
     """Moves the chart reaching furthest along the layout's limiting side (the far edge nearest the
     atlas's, right or top) to the lowest-then-leftmost free place whose far edge on that side is smaller
     and whose other far edge stays inside the layout's box; repeated ``steps`` times at most, it stops at
@@ -185,7 +197,7 @@ def lower_far_edge(fps, dil, xy, grid, g, steps=50):
         grid.add(dil[i], int(pos[0]), int(pos[1]), g, 1)
 
 
-def compact(packer, p: ShapePacking, width: int, height: int, gutter_px: int, *, passes: int = 2,
+def compact(packer: ShapePacker, p: ShapePacking, width: int, height: int, gutter_px: int, *, passes: int = 2,
             steps: int = 50) -> ShapePacking:
     """The packing ``p`` (full resolution, inside the ``width x height`` atlas) compacted: slide(), then
     lower_far_edge() (see the module text); ``p`` itself when a chart lies outside the atlas."""
