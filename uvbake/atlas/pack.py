@@ -423,8 +423,14 @@ def _shape_angles(n, rects, rotate, few):
 # orders are tried on big meshes and for 5-8 charts (each order costs a placement of every chart; up to 4
 # charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the time). One
 # round of widths: a second one under the best density (another raster) took 30 % of the time for
-# -0.2..+0.6 points (cow +0.1, camelhead +0.6, fandisk -0.2).
+# -0.2..+0.6 points (cow +0.1, camelhead +0.6, fandisk -0.2). The coarse layout is compacted at full
+# resolution (uvbake.atlas.compact) only on meshes of >= 16384 faces and >= 8 charts (camelhead +0.7
+# points): it gains 0..+2.1 points on every coarse layout but costs 0.25-0.5 s CPU (cow's packing
+# 0.23 -> 0.75 s, fandisk's 0.25 -> 0.46 s: over 10 % of their commands); fit_scale's full-resolution
+# layouts gain nothing (xatlas:camelhead: no chart moves).
 _FIT_SCALE_FROM = 64
+_COMPACT_FACES = 16384
+_COMPACT_CHARTS = 8
 _BIG_MESH_FACES = 8192
 _ORDERS_UP_TO = 8
 
@@ -433,12 +439,12 @@ def _fit_free_scale(packer, W, H, g, guess):
     """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
-    n = len(packer.uvs)
+    n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
+    big = faces >= _BIG_MESH_FACES
     if n >= _FIT_SCALE_FROM:
         p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
-        big = sum(len(F) for F in packer.faces) >= _BIG_MESH_FACES
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
                       floor=guess, rounds=1, coarse_px=512 if big else 256,
                       order_packs=2 if big or 4 < n <= _ORDERS_UP_TO else 0)
@@ -447,7 +453,19 @@ def _fit_free_scale(packer, W, H, g, guess):
     if p is None:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
                          f"take the room; reduce gutter_px or increase texture_size_px")
-    return scale_to_border(packer, p, W, H, g)
+    p = scale_to_border(packer, p, W, H, g)
+    if faces >= _COMPACT_FACES and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
+        p = _compacted(packer, p, W, H, g)
+    return p
+
+
+def _compacted(packer, p, W, H, g):
+    """``p`` compacted at full resolution (uvbake.atlas.compact) and scaled back to the border, when denser."""
+    from uvbake.atlas.compact import compact
+    from uvbake.atlas.fit import scale_to_border
+
+    q = scale_to_border(packer, compact(packer, p, W, H, g), W, H, g)
+    return q if q is not None and q.density > p.density else p
 
 
 def _grow(packer, g, density, mip_levels, aspect):
