@@ -239,10 +239,10 @@ def test_a_folded_chart_loses_every_starving_region_in_one_cut_and_charting_work
     the remainder, so the remainder is re-solved once per round, not once per region; the conformal
     work of the whole stage (every solve's triangles, merging included) stays a small multiple of
     the mesh (measured 8.2x; 13.1x when regions were peeled one at a time)."""
-    from conftest import shared_mesh
-
     from uvbake.atlas.charting import _cut_by_factor, _frames, _smoothed, disk_charts
     from uvbake.io import load_mesh
+
+    from conftest import shared_mesh
 
     mesh = load_mesh(str(shared_mesh("halftunnel.off")))
     V, F = mesh.V, mesh.F
