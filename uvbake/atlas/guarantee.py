@@ -248,11 +248,13 @@ def _solve_flip_free(charts, starts, options, workers, progress):
     while the plain LM reaches 4.68 with nothing flipped), so it is the fallback, not the rule."""
     from uvbake.flatten.solve import parameterize_charts
 
-    results = parameterize_charts(charts, starts=starts, workers=workers, progress=progress, **options)
+    # checked: charting verified every chart a disk with holes (disk_charts), and cuts, joins and
+    # splits keep that by construction, so the solver's own topology check is not repeated
+    results = parameterize_charts(charts, starts=starts, workers=workers, progress=progress, checked=True, **options)
     again = [i for i, r in enumerate(results) if r.n_flipped > 0 and starts[i] is not None]
     if again:
         redo = parameterize_charts([charts[i] for i in again], starts=[starts[i] for i in again], workers=workers,
-                                   injective=True, **options)
+                                   injective=True, checked=True, **options)
         for i, r in zip(again, redo):
             results[i] = r
     return results
