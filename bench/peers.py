@@ -9,8 +9,9 @@ Writes ``<out>/<name>.md`` (the table) and ``<name>.json`` (every number); defau
 that process's whole CPU time (``resource.getrusage(RUSAGE_CHILDREN)`` before and after; user +
 system, all threads) besides the CPU of the unwrap call alone (``time.process_time`` inside it):
 
-- ``uvbake-A``: unwrap CPU of ``uvbake.unwrap(path, alpha=A)`` without a bake (load and repair
-  included, as the Python API does them); whole CPU of the command
+- ``uvbake-A``: unwrap CPU of ``uvbake.unwrap((V, F), face_labels=..., alpha=A)`` without a bake on
+  the mesh already read, after uvbake's imports (as xatlas's is timed on arrays with the module
+  loaded; repair included; see bench/peer_worker.py); whole CPU of the command
   ``uvbake MESH --alpha A --bake checker.png`` (1024 px checker, OBJ + MTL + PNG + JSON report
   written). The quality columns measure the in-process result (on the repaired mesh).
 - ``xatlas``: ``xatlas.Atlas`` + ``generate()`` with defaults (what ``xatlas.parametrize`` runs);
@@ -316,8 +317,8 @@ def main(argv=None):
           "(user + system, all threads), so they are far less sensitive than wall time to other jobs "
           "sharing the cores, but not immune (caches, memory bandwidth).", "",
           table(rows), "",
-          "CPU unwrap: the unwrap call alone (uvbake: `uvbake.unwrap(path, alpha=A)`, load and repair "
-          "included, no bake; blender: `smart_project` + `pack_islands`). CPU whole: the whole process "
+          "CPU unwrap: the unwrap call alone, imports and file reading excluded as for xatlas (uvbake: "
+          "`uvbake.unwrap((V, F), alpha=A)`, repair included, no bake; blender: `smart_project` + `pack_islands`). CPU whole: the whole process "
           "(uvbake: the command `uvbake MESH --alpha A --bake checker.png`; peers: a process importing the "
           "tool, reading the mesh, unwrapping and writing the UVs). charts: through uncut edges (the "
           "method's own count in brackets where it differs). seam: 3D length of cut edges. flipped, "

@@ -288,6 +288,36 @@ def test_ribbon_packs_above_60_percent_in_a_growing_free_aspect_atlas():
     assert res.efficiency > 0.60
 
 
+def test_convex_hull_matches_qhull_up_to_rounding():
+    """The hand-written hull: every point inside or on it (within rounding), ccw, and the same
+    vertex set as Qhull's apart from points within rounding of an edge's line (dense circles)."""
+    from scipy.spatial import ConvexHull
+
+    from uvbake.atlas.maxrects import convex_hull_2d
+
+    rng = np.random.default_rng(5)
+    for k in range(120):
+        n = int(rng.integers(3, 800))
+        P = rng.normal(size=(n, 2)) * [1.0, rng.uniform(0.01, 3.0)]
+        if k % 3 == 0:
+            t = rng.uniform(0, 2 * np.pi, n)
+            P = np.column_stack([np.cos(t), np.sin(t)])
+        if k % 4 == 0:
+            P = np.round(P * 4) / 4                     # duplicates and collinear runs
+        h = convex_hull_2d(P)
+        H = P[h]
+        E = np.roll(H, -1, axis=0) - H
+        assert 0.5 * np.sum(H[:, 0] * np.roll(H[:, 1], -1) - np.roll(H[:, 0], -1) * H[:, 1]) > 0   # ccw
+        cross = E[:, None, 0] * (P[None, :, 1] - H[:, None, 1]) - E[:, None, 1] * (P[None, :, 0] - H[:, None, 0])
+        scale = np.ptp(P, axis=0).max() ** 2
+        assert cross.min() >= -1e-12 * scale           # nothing outside any edge
+        q = ConvexHull(P)
+        assert abs(q.volume - 0.5 * np.sum(H[:, 0] * np.roll(H[:, 1], -1) - np.roll(H[:, 0], -1) * H[:, 1])) \
+            <= 1e-12 * scale
+        if k % 3:                                       # no near-collinear points: the same vertices
+            assert set(map(tuple, H)) == set(map(tuple, P[q.vertices]))
+
+
 def test_calipers_find_the_minimum_area_rectangle_of_every_hull():
     from uvbake.atlas.maxrects import _hull_points, min_area_rect
 
@@ -336,3 +366,17 @@ def test_a_coarse_layout_scaled_to_the_atlas_keeps_the_exact_gutter_or_is_refuse
     assert lo >= 2 * (1 - 1e-9) and hi <= size - 2 * (1 - 1e-9)
     assert max(x.max(axis=0)[0] for x in Q) == pytest.approx(size - 2, rel=1e-6) or \
         max(x.max(axis=0)[1] for x in Q) == pytest.approx(size - 2, rel=1e-6)    # it fills one side
+
+
+def test_row_widening_is_scipys_maximum_filter():
+    """_widen_rows (numpy, running counts) against scipy.ndimage.maximum_filter1d, exactly."""
+    from scipy.ndimage import maximum_filter1d
+
+    from uvbake.atlas.shapepack import _widen_rows
+
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        h, w = (int(x) for x in rng.integers(1, 40, 2))
+        r = int(rng.integers(1, 12))
+        a = rng.random((h, w)) < rng.uniform(0.0, 0.3)
+        assert np.array_equal(_widen_rows(a, r), maximum_filter1d(a, size=2 * r + 1, axis=1, mode="constant"))
