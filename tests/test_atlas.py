@@ -197,7 +197,7 @@ def test_two_halves_of_a_disk_join_back_into_the_disk_and_a_closed_join_is_refus
 
 
 def test_merging_back_keeps_every_chart_within_the_budget_and_overlap_free():
-    from uvbake.atlas.charting import _Charting, conformal_factor, sub_charts
+    from uvbake.atlas.charting import _Charting, _frames, conformal_factor, sub_charts
     from uvbake.atlas.guarantee import overlapping_pairs
     from uvbake.atlas.merge import merge_back
     from uvbake.mesh.charts import split_charts
@@ -207,7 +207,7 @@ def test_merging_back_keeps_every_chart_within_the_budget_and_overlap_free():
     quarter = ((V[F].mean(axis=1)[:, 0] > 1.0).astype(np.int64) * 2 + (V[F].mean(axis=1)[:, 1] > 0.5))
     parts = sub_charts(whole, quarter)
     assert len(parts) == 4
-    st = _Charting(float(np.log(4.0)), None, 100, [])
+    st = _Charting(float(np.log(4.0)), None, 100, [], _frames(V, F))
     st.done = list(parts)
     st.starts = [conformal_factor(p.V, p.F)[0] for p in parts]
     merge_back(st)

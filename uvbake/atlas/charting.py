@@ -400,6 +400,7 @@ class _Charting:
     max_charts: int | None
     budget_solves: int
     queue: list
+    frames: tuple                    # (Q, area) of every mesh triangle: a chart's are frames[k][face_index]
     done: list = dataclasses.field(default_factory=list)
     starts: list = dataclasses.field(default_factory=list)
     budget_cuts: list = dataclasses.field(default_factory=list)
@@ -407,11 +408,16 @@ class _Charting:
     solves: int = 0
     solved_triangles: int = 0        # triangles of every conformal solve (the stage's work count)
 
+    def chart_frames(self, chart):
+        """(Q, area) of the chart's triangles: intrinsic to each triangle and its corner order, which
+        cuts, slits and joins keep, so they are taken from the mesh's, computed once."""
+        return self.frames[0][chart.face_index], self.frames[1][chart.face_index]
+
     def conformal(self, chart, frames=None):
         """:func:`conformal_factor` of ``chart``, counted."""
         self.solves += 1
         self.solved_triangles += len(chart.F)
-        return conformal_factor(chart.V, chart.F, frames=frames)
+        return conformal_factor(chart.V, chart.F, frames=self.chart_frames(chart) if frames is None else frames)
 
     def full(self):
         return self.max_charts is not None and len(self.done) + len(self.queue) + 1 >= self.max_charts
@@ -433,7 +439,7 @@ def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
     note = progress or (lambda stage, done, total: None)
     disks, cuts = disk_charts(V, F, labels, auto_cut=auto_cut)
     st = _Charting(float(np.log(max_stretch)), max_charts, MAX_SOLVES_PER_CHART * len(disks),
-                   [(c, None) for c in disks])
+                   [(c, None) for c in disks], _frames(np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)))
     checked = 0
     for _ in range(OVERLAP_ROUNDS + 1):                 # rounds: conformal charts, then their overlaps
         while st.queue:                                 # one iteration per conformal solve
@@ -454,7 +460,7 @@ def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
 def _decide(st, chart, previous):
     """One conformal solve of ``chart``: keep it (within the budget, or a work count says stop), or
     slit it (while slits pay: the least factor at least doubles; a slit adds no chart), or cut it."""
-    frames = _frames(chart.V, chart.F)
+    frames = st.chart_frames(chart)
     uv, logf = st.conformal(chart, frames)
     ok = bool(np.all(np.isfinite(logf)) and logf.min() >= -st.bound)
     small = len(chart.F) < 2 * MIN_PIECE_FACES
