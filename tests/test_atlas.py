@@ -259,3 +259,19 @@ def test_a_folded_chart_loses_every_starving_region_in_one_cut_and_charting_work
     charts, _, log = make_charts(V, F, max_stretch=4.0)
     assert log["conformal_triangles"] <= 10 * len(F)
     assert len(charts) <= 11                           # xatlas 0.1.x: 11 charts
+
+
+@pytest.mark.parametrize("rounds", [0, 1, 2])
+def test_charting_covers_every_face_once_whatever_the_overlap_rounds(monkeypatch, rounds):
+    """Parts queued by the last allowed overlap separation are still decided (they were once
+    dropped, leaving faces in no chart); with no rounds left an overlapping chart stays whole."""
+    from conftest import shared_mesh
+
+    import uvbake.atlas.charting as charting
+
+    mesh = uvbake.io.load_mesh(str(shared_mesh("cow.off")))
+    monkeypatch.setattr(charting, "OVERLAP_ROUNDS", rounds)
+    charts, starts, log = charting.make_charts(mesh.V, mesh.F)
+    faces = np.concatenate([c.face_index for c in charts])
+    assert np.array_equal(np.sort(faces), np.arange(len(mesh.F)))
+    assert len(starts) == len(charts)

@@ -440,14 +440,15 @@ def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
     disks, cuts = disk_charts(V, F, labels, auto_cut=auto_cut)
     st = _Charting(float(np.log(max_stretch)), max_charts, MAX_SOLVES_PER_CHART * len(disks),
                    [(c, None) for c in disks], _frames(np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)))
-    checked = 0
-    for _ in range(OVERLAP_ROUNDS + 1):                 # rounds: conformal charts, then their overlaps
+    checked, rounds = 0, 0
+    while True:                                         # rounds: conformal charts, then their overlaps
         while st.queue:                                 # one iteration per conformal solve
             _decide(st, *st.queue.pop(0))
             note("charts", len(st.done), len(st.done) + len(st.queue))
-        if not _separate_overlaps(st, checked):
+        # the queue is always drained after a separation (the parts of the last one were once dropped)
+        if rounds == OVERLAP_ROUNDS or not _separate_overlaps(st, checked):
             break
-        checked = len(st.done)
+        rounds, checked = rounds + 1, len(st.done)
     from uvbake.atlas.merge import merge_back
 
     merge_back(st)

@@ -54,7 +54,8 @@ def merge_back(st: _Charting) -> None:
         uv, logf = st.conformal(merged)
         # within half the budget (in log terms), or no worse than the worse of the two: the LM moves
         # factors after the merge (camelhead at alpha 0: least share 0.19 against 0.31 with the whole budget)
-        floor = min(-MERGE_SHARE_OF_BUDGET * st.bound, np.log(min(least[i], least[j])))
+        # (a chart kept over budget may be folded: its least factor is <= 0, and the budget decides)
+        floor = min(-MERGE_SHARE_OF_BUDGET * st.bound, np.log(max(min(least[i], least[j]), np.finfo(float).tiny)))
         if not (np.all(np.isfinite(logf)) and logf.min() >= max(-st.bound, floor)):
             continue
         if len(overlapping_pairs([merged], [uv])[0]):
