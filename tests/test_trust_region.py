@@ -123,3 +123,30 @@ def test_certificate_on_the_solvers_own_symbolic_analysis_equals_a_fresh_one():
     fresh = certify(E, r.uv)
     assert shared.lambda_min == pytest.approx(fresh.lambda_min, rel=1e-6)
     assert shared.is_local_minimum and r.lambda_min == pytest.approx(fresh.lambda_min, rel=1e-6)
+
+
+def test_the_last_flip_free_iterate_is_kept_for_a_resumed_solve():
+    """trust_region remembers its last iterate with every det > 0 (the guarantee resumes its
+    step-bounded redo from there when the plain solve ends with flips): from a valid start that stays
+    valid it is the final iterate; from a random, folded start it is None until an iterate unfolds,
+    and whenever it is set every triangle is positive there."""
+    from uvbake.flatten.solvers.trust import trust_region
+
+    V, F = bumpy_disk(10, amp=0.5, seed=2)
+    Vn, _ = unit_scale(np.asarray(V, float), F)
+    E = DistortionEnergy(Vn, F, alpha=0.5)
+    start = initial_map(Vn, F, "lscm")
+    x, res = trust_region(E, E.to_vector(start), uv_fixed=start)
+    assert np.all(E.determinants(E.to_uv(x, start)) > 0)
+    assert np.array_equal(res.extra["flip_free_x"], x)
+    folded = initial_map(Vn, F, "random", seed=4)
+    assert np.any(E.determinants(folded) <= 0)
+    for iters in (1, 3, 200):
+        x, res = trust_region(E, E.to_vector(folded), uv_fixed=folded, max_iter=iters, certificate=False)
+        ff = res.extra["flip_free_x"]
+        if ff is not None:
+            assert np.all(E.determinants(E.to_uv(ff, folded)) > 0)
+        if np.all(E.determinants(E.to_uv(x, folded)) > 0):
+            assert np.array_equal(ff, x)
+        else:
+            assert ff is None or not np.array_equal(ff, x)

@@ -253,7 +253,10 @@ def _solve_flip_free(charts, starts, options, workers, progress):
     results = parameterize_charts(charts, starts=starts, workers=workers, progress=progress, checked=True, **options)
     again = [i for i, r in enumerate(results) if r.n_flipped > 0 and starts[i] is not None]
     if again:
-        redo = parameterize_charts([charts[i] for i in again], starts=[starts[i] for i in again], workers=workers,
+        # from the plain run's last flip-free iterate when it has one (nearer the minimum than the
+        # start: beetle's redo 17 -> N iterations), else from the start
+        resume = [starts[i] if results[i].flip_free_uv is None else results[i].flip_free_uv for i in again]
+        redo = parameterize_charts([charts[i] for i in again], starts=resume, workers=workers,
                                    injective=True, checked=True, **options)
         for i, r in zip(again, redo):
             results[i] = r

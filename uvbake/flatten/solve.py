@@ -168,6 +168,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
     det = energy.determinants(uvn)
+    flip_free = info.extra.get("flip_free_x") if np.any(det <= 0) and alpha != 0.0 else None
     cert = info.extra.get("certificate")      # the trust region's own second-order test, at uvn
     if cert is None and options.certificate:
         cert = certify(energy, uvn, linear_solver=options.linear_solver, solver=solver)
@@ -190,6 +191,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         status=info.status,
         lambda_min=cert.lambda_min if cert else float("nan"),
         is_local_minimum=(bool(grad_norm < options.tol) and cert.is_local_minimum) if cert else None,
+        flip_free_uv=None if flip_free is None else energy.to_uv(flip_free, uv_start) * unit,
     )
 
 

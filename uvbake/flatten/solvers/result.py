@@ -152,6 +152,8 @@ class ParamResult:
     status: Status | None = None
     lambda_min: float = float("nan")
     is_local_minimum: bool | None = None
+    #: when the map has flipped triangles: the solver's last iterate without any (chart units), or None
+    flip_free_uv: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def certificate_line(self) -> str:
         """The summary line of the second-order certificate."""

@@ -99,6 +99,7 @@ class _State:
         self.Hp = energy.empty_matrix()
         self.it, self.n_eval, self.n_cg, self.escapes = 0, 0, 0, 0
         self.history, self.cert = [], None
+        self.flip_free = None                      # the last iterate with every det > 0 (unbounded steps)
         self.move(x)
         self.history.append(self.f)
         self.solver = solver or make_solver(self.H, method=linear_solver)
@@ -112,6 +113,8 @@ class _State:
         self.uv = self.energy.to_uv(x, self.uv_fixed)
         self.f, self.g, _ = self.energy.evaluate(self.uv, out=self.H)
         self.n_eval += 1
+        if self.step_limit is None and np.all(self.energy.determinants(self.uv) > 0):
+            self.flip_free = x
         self.gnorm = float(np.linalg.norm(self.g))
         self.factored = False                      # M must be factored at the new iterate
         self.cert = None
@@ -286,4 +289,4 @@ def trust_region(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarr
                             converged=bool(s.gnorm < tol), history=np.asarray(s.history), status=stop,
                             solve_time_s=time.perf_counter() - t0,
                             extra=dict(linear_solver=s.solver.name, cg_iterations=s.n_cg, saddle_escapes=s.escapes,
-                                       certificate=s.cert))
+                                       certificate=s.cert, flip_free_x=s.flip_free))
