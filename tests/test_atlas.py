@@ -265,9 +265,9 @@ def test_a_folded_chart_loses_every_starving_region_in_one_cut_and_charting_work
 def test_charting_covers_every_face_once_whatever_the_overlap_rounds(monkeypatch, rounds):
     """Parts queued by the last allowed overlap separation are still decided (they were once
     dropped, leaving faces in no chart); with no rounds left an overlapping chart stays whole."""
-    from conftest import shared_mesh
-
     import uvbake.atlas.charting as charting
+
+    from conftest import shared_mesh
 
     mesh = uvbake.io.load_mesh(str(shared_mesh("cow.off")))
     monkeypatch.setattr(charting, "OVERLAP_ROUNDS", rounds)

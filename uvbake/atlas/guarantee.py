@@ -216,11 +216,27 @@ def _positions(haystack, needles):
 
 def overlapping_pairs(charts: list[Chart], uvs: list[np.ndarray]) -> list[np.ndarray]:
     """Overlapping triangle pairs inside each chart, as a list of local (p,2) arrays, from one exact
-    check (the exact pass of :func:`uvbake.validate.validate`) of all the charts laid side by side on shelves."""
-    from uvbake.validate.core import overlap_pairs
+    check (the exact pass of :func:`uvbake.validate.validate`) of all the charts laid side by side on
+    shelves, for the charts their boundary does not already prove overlap-free."""
+    from uvbake.validate.boundary import proven_injective
 
     if not charts:
         return []
+    # a chart whose triangles are all positive and whose boundary is simple has no overlap (degree
+    # argument, uvbake/validate/boundary.py); only the others go through the exact all-triangle check
+    proven = proven_injective(uvs, [c.F for c in charts])
+    todo = [k for k in range(len(charts)) if not proven[k]]
+    out = [np.zeros((0, 2), np.int64) for _ in charts]
+    if todo:
+        for k, pairs in zip(todo, _exact_overlaps([charts[k] for k in todo], [uvs[k] for k in todo])):
+            out[k] = pairs
+    return out
+
+
+def _exact_overlaps(charts, uvs):
+    """The exact check of :func:`overlapping_pairs` on the charts laid side by side on shelves."""
+    from uvbake.validate.core import overlap_pairs
+
     lo = [np.asarray(uv).min(axis=0) for uv in uvs]
     size = np.array([np.asarray(uv).max(axis=0) - low for uv, low in zip(uvs, lo)])
     gap = 0.05 * float(size.max()) + 1e-12

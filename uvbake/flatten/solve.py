@@ -168,7 +168,6 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
     det = energy.determinants(uvn)
-    flip_free = info.extra.get("flip_free_x") if np.any(det <= 0) and alpha != 0.0 else None
     cert = info.extra.get("certificate")      # the trust region's own second-order test, at uvn
     if cert is None and options.certificate:
         cert = certify(energy, uvn, linear_solver=options.linear_solver, solver=solver)
@@ -191,8 +190,18 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         status=info.status,
         lambda_min=cert.lambda_min if cert else float("nan"),
         is_local_minimum=(bool(grad_norm < options.tol) and cert.is_local_minimum) if cert else None,
-        flip_free_uv=None if flip_free is None else energy.to_uv(flip_free, uv_start) * unit,
+        flip_free_uv=_flip_free_uv(energy, info, det, uv_start, unit),
     )
+
+
+def _flip_free_uv(energy: DistortionEnergy, info: SolveResult, det: np.ndarray, uv_start: np.ndarray,
+                  unit: float) -> np.ndarray | None:
+    """The backend's last flip-free iterate in chart units, when the result has flips (for a resumed,
+    step-bounded solve); None otherwise, and at alpha 0, whose second run restarts from the scaled map."""
+    x = info.extra.get("flip_free_x")
+    if x is None or not np.any(det <= 0) or energy.alpha == 0.0:
+        return None
+    return energy.to_uv(x, uv_start) * unit
 
 
 def _start_map(Vn: np.ndarray, F: np.ndarray, unit: float, start: np.ndarray | None, options: SolveOptions,

@@ -1,0 +1,121 @@
+"""Overlap-freedom of one chart's map from its boundary alone.
+
+    proven = boundary_proves_injective(uv, F)    # True: no two triangles of the chart overlap
+
+For a map of a disk with holes that is linear on each triangle, the degree of the map at a point y
+off the boundary's image is the winding number of the boundary's image around y, and it equals the
+number of triangles covering y when every triangle is positively oriented. When the boundary loops'
+images are simple and pairwise disjoint (the outer loop counter-clockwise, the holes clockwise, as a
+chart's boundary half-edges run), every winding number is 0 or 1: no point is covered twice, so no
+pair of triangles overlaps. Checking that costs a sweep over the b boundary segments instead of the
+all-triangle exact check (annulus of 8,192 triangles: 35 ms per call before).
+
+The test is conservative: a touching or collinear contact (other than a straight run of the
+boundary), a repeated boundary position, a
+degenerate or negative triangle, or too many candidate segment pairs answer False, and the caller
+runs the full check (:func:`uvbake.validate.core.overlap_pairs`) for the pairs themselves.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from uvbake.validate.predicates import _orient
+
+#: Candidate boundary-segment pairs above which the sweep gives up (the full check is then cheaper).
+MAX_SEGMENT_PAIRS = 2_000_000
+
+
+def boundary_proves_injective(uv: ArrayLike, F: ArrayLike) -> bool:
+    """True when every triangle of (uv, F) is positively oriented (exactly) and the boundary segments
+    meet only at the endpoint two consecutive ones share, without folding back: then no two triangles
+    overlap. False means "not proven" (run the full check), not "overlapping"."""
+    return bool(proven_injective([uv], [F])[0])
+
+
+def proven_injective(uvs: Sequence[ArrayLike], Fs: Sequence[ArrayLike]) -> np.ndarray:
+    """:func:`boundary_proves_injective` of many charts at once (one vectorised pass; charts are
+    independent): a (k,) bool array."""
+    from uvbake.mesh.topology import boundary_edges
+
+    k = len(uvs)
+    uv_list = [np.asarray(uv, dtype=np.float64) for uv in uvs]
+    F_list = [np.asarray(F, dtype=np.int64) for F in Fs]
+    ok = np.array([len(F) > 0 for F in F_list])
+    if not ok.any():
+        return ok
+    nv = np.array([len(uv) for uv in uv_list])
+    off = np.concatenate([[0], np.cumsum(nv)[:-1]])
+    uv = np.concatenate(uv_list)
+    F = np.concatenate([F + o for F, o in zip(F_list, off)])
+    face_chart = np.repeat(np.arange(k), [len(F) for F in F_list])
+    A, B, C = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
+    sign, _ = _orient(A[:, 0], A[:, 1], B[:, 0], B[:, 1], C[:, 0], C[:, 1])
+    ok &= np.bincount(face_chart[sign <= 0], minlength=k) == 0
+    seg = boundary_edges(F, len(uv))
+    vert_chart = np.repeat(np.arange(k), nv)
+    seg_chart = vert_chart[seg[:, 0]]
+    ok &= np.bincount(seg_chart, minlength=k) >= 3
+    bv = np.unique(seg)                                # two boundary vertices of one chart at one position
+    _, inv, cnt = np.unique(np.column_stack([vert_chart[bv], uv[bv]]), axis=0, return_inverse=True,
+                            return_counts=True)
+    ok[vert_chart[bv[cnt[inv.ravel()] > 1]]] = False
+    i, j = _candidate_pairs(uv, seg, seg_chart)
+    if i is None:
+        return np.zeros(k, bool)
+    shared = (seg[i, 1] == seg[j, 0]) | (seg[i, 0] == seg[j, 1])
+    hit = _touch(uv, seg[i[~shared]], seg[j[~shared]])
+    ok[seg_chart[i[~shared][hit]]] = False
+    # consecutive segments p->q, q->r meet only at q unless r is on the line through p and q and
+    # folds back over p->q (a straight continuation, r beyond q, is fine)
+    a, b = seg[i[shared]], seg[j[shared]]
+    first = a[:, 1] == b[:, 0]
+    p = np.where(first, a[:, 0], b[:, 0])
+    q = np.where(first, a[:, 1], b[:, 1])
+    r = np.where(first, b[:, 1], a[:, 1])
+    s, _ = _orient(uv[p, 0], uv[p, 1], uv[q, 0], uv[q, 1], uv[r, 0], uv[r, 1])
+    back = np.einsum("ij,ij->i", uv[q] - uv[p], uv[r] - uv[q]) <= 0
+    ok[seg_chart[i[shared][(s == 0) & back]]] = False
+    return ok
+
+
+def _candidate_pairs(uv, seg, seg_chart):
+    """Index pairs (i, j), i != j, of boundary segments of one chart whose bounding boxes meet (closed
+    boxes), or (None, None) past MAX_SEGMENT_PAIRS: a sweep along x per chart, then the y test."""
+    P, Q = uv[seg[:, 0]], uv[seg[:, 1]]
+    lo, hi = np.minimum(P, Q), np.maximum(P, Q)
+    order = np.lexsort((lo[:, 0], seg_chart))          # by chart, then by left end
+    ch, xs = seg_chart[order], lo[order, 0]
+    # the sorted segments of my chart starting by my right end: search within each chart's block
+    block_end = np.searchsorted(ch, ch, side="right")
+    end = np.empty(len(order), np.int64)
+    starts = np.flatnonzero(np.r_[True, ch[1:] != ch[:-1]])
+    stops = np.r_[starts[1:], len(ch)]
+    for s0, s1 in zip(starts, stops):                  # one iteration per chart
+        end[s0:s1] = s0 + np.searchsorted(xs[s0:s1], hi[order[s0:s1], 0], side="right")
+    end = np.minimum(end, block_end)
+    count = np.maximum(end - np.arange(len(order)) - 1, 0)
+    total = int(count.sum())
+    if total > MAX_SEGMENT_PAIRS:
+        return None, None
+    a = np.repeat(np.arange(len(order)), count)
+    b = a + 1 + (np.arange(total) - np.repeat(np.cumsum(count) - count, count))
+    i, j = order[a], order[b]
+    keep = (lo[i, 1] <= hi[j, 1]) & (lo[j, 1] <= hi[i, 1])
+    return i[keep], j[keep]
+
+
+def _touch(uv, s, t):
+    """Whether segments s[k] and t[k] (no shared endpoint) meet: cross, touch, or are collinear and
+    overlapping (any zero orientation is taken as a contact: conservative)."""
+    if not len(s):
+        return np.zeros(0, bool)
+    p, q, r, w = uv[s[:, 0]], uv[s[:, 1]], uv[t[:, 0]], uv[t[:, 1]]
+    o1, _ = _orient(p[:, 0], p[:, 1], q[:, 0], q[:, 1], r[:, 0], r[:, 1])
+    o2, _ = _orient(p[:, 0], p[:, 1], q[:, 0], q[:, 1], w[:, 0], w[:, 1])
+    o3, _ = _orient(r[:, 0], r[:, 1], w[:, 0], w[:, 1], p[:, 0], p[:, 1])
+    o4, _ = _orient(r[:, 0], r[:, 1], w[:, 0], w[:, 1], q[:, 0], q[:, 1])
+    return (o1.astype(np.int64) * o2 <= 0) & (o3.astype(np.int64) * o4 <= 0)
