@@ -92,6 +92,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="refuse closed charts and charts with handles instead of cutting them into disks")
     g.add_argument("--no-repair", action="store_true",
                    help="refuse non-manifold input instead of repairing it (bowties, specks, duplicates)")
+    g.add_argument("--no-pack-splits", action="store_true",
+                   help="never cut a large chart in two to pack the atlas denser (fewer seams)")
     g.add_argument("--paper", action="store_true",
                    help="the paper's formulation as is: charts from labels and disk cuts only, no distortion "
                         "budget, no injective solve (flips, overlaps and starved triangles are reported, not "
@@ -257,7 +259,7 @@ def _solve(args: argparse.Namespace, mode: str | None) -> Any:
                     bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
                     guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
                     max_stretch=args.max_stretch, max_charts=args.max_charts, weld=True if args.weld else None,
-                    progress=bar.stage, callback=bar.iteration)
+                    pack_splits=not args.no_pack_splits, progress=bar.stage, callback=bar.iteration)
     if args.cross_check:
         result.report["cross_check"] = cross_check_charts(result.charts, result.results, alpha=args.alpha,
                                                           init=args.init, tol=args.tol, max_iter=args.max_iter,
