@@ -26,6 +26,7 @@ from uvbake.atlas.shapepack import (
     _raw_runs,
     _runs,
     footprint,
+    update_runs,
 )
 
 
@@ -75,18 +76,16 @@ class _Grid:
         self.count[cy0:cy1, cx0:cx1] += sign * dil[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
         if tables == 0:
             return
-        b = (self.count[cy0:cy1] > 0) | self.border[cy0:cy1]
+        # only the texels under the footprint changed: blocked flags there, run tables around them
+        b = (self.count[cy0:cy1, cx0:cx1] > 0) | self.border[cy0:cy1, cx0:cx1]
         a = self.atlas
-        a.blocked[cy0:cy1] = b
-        a.run[cy0:cy1] = _free_runs(b)
-        a.rowmax[cy0:cy1] = a.run[cy0:cy1].max(axis=1)
+        a.blocked[cy0:cy1, cx0:cx1] = b
+        update_runs(a.blocked, a.run, a.rowmax, cy0, cy1, cx0, cx1)
         if tables == 1:
             return
-        bt = ((self.count[:, cx0:cx1] > 0) | self.border[:, cx0:cx1]).T
         t = self.atlasT
-        t.blocked[cx0:cx1] = bt
-        t.run[cx0:cx1] = _free_runs(bt)
-        t.rowmax[cx0:cx1] = t.run[cx0:cx1].max(axis=1)
+        t.blocked[cx0:cx1, cy0:cy1] = b.T
+        update_runs(t.blocked, t.run, t.rowmax, cx0, cx1, cy0, cy1)
 
     def refresh(self, tables=(0, 1)):
         """Recompute run tables from the counts (0: rows, 1: columns)."""

@@ -197,12 +197,31 @@ def _widen_rows(a, r):
 
 # ------------------------------------------------------------------------------------- the atlas
 
-def _free_runs(blocked):
-    """Length of the free run starting at every texel of each row (0 on blocked texels)."""
+def _free_runs(blocked, after=None):
+    """Length of the free run starting at every texel of each row (0 on blocked texels); ``after`` (one
+    per row): the run starting just right of the last column, for a slice of wider rows (0: the end)."""
     h, w = blocked.shape
-    idx = np.where(blocked, np.arange(w)[None, :], w)
+    idx = np.where(blocked, np.arange(w, dtype=np.int32)[None, :], np.int32(w))
     nxt = np.minimum.accumulate(idx[:, ::-1], axis=1)[:, ::-1]
-    return (nxt - np.arange(w)[None, :]).astype(np.int32)
+    run = nxt - np.arange(w, dtype=np.int32)[None, :]
+    if after is not None:
+        run += np.where(nxt == w, after[:, None], 0).astype(np.int32)
+    return run
+
+
+def update_runs(blocked, run, rowmax, r0, r1, c0, c1):
+    """Refresh the free-run tables of rows ``r0:r1`` after their blocked texels changed in columns
+    ``c0:c1`` only: a run starting right of ``c1`` or ending (at a blocked texel) left of ``c0`` is
+    unchanged, so each row is recomputed from its last blocked texel left of ``c0`` to ``c1``."""
+    w = blocked.shape[1]
+    b = blocked[r0:r1]
+    left = b[:, :c0]
+    # first column whose run can change, per row: just right of the last blocked texel left of c0
+    last = np.where(left.any(axis=1), c0 - np.argmax(left[:, ::-1], axis=1), 0) if c0 > 0 else np.zeros(r1 - r0, int)
+    lo = int(last.min()) if len(last) else 0
+    after = run[r0:r1, c1] if c1 < w else np.zeros(r1 - r0, np.int32)
+    run[r0:r1, lo:c1] = _free_runs(b[:, lo:c1], after)
+    rowmax[r0:r1] = run[r0:r1].max(axis=1)
 
 
 class _Atlas:
@@ -294,9 +313,7 @@ class _Atlas:
         cy0, cx0 = max(y0, 0), max(x0, 0)
         cy1, cx1 = min(y0 + H, len(self.blocked)), min(x0 + W, self.w)
         self.blocked[cy0:cy1, cx0:cx1] |= fp_dilated[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
-        run = _free_runs(self.blocked[cy0:cy1])
-        self.run[cy0:cy1] = run
-        self.rowmax[cy0:cy1] = run.max(axis=1)
+        update_runs(self.blocked, self.run, self.rowmax, cy0, cy1, cx0, cx1)
         self.top = max(self.top, top)
 
 
