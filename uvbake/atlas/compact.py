@@ -18,6 +18,7 @@ import numpy as np
 
 from uvbake.atlas.shapepack import (
     _EPS,
+    _RUN,
     ShapePacker,
     ShapePacking,
     _Atlas,
@@ -62,8 +63,8 @@ class _Grid:
         a.w, a.limit, a.m, a.top = width, height, margin, height - margin - 1
         a.blocked = np.ones((2 * height, width), bool)
         a.blocked[:height] = blocked
-        a.run = np.zeros((2 * height, width), np.int32)
-        a.rowmax = np.zeros(2 * height, np.int32)
+        a.run = np.zeros((2 * height, width), _RUN)
+        a.rowmax = np.zeros(2 * height, _RUN)
         return a
 
     def add(self, dil, x, y, g, sign, tables=2):
