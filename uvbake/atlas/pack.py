@@ -416,23 +416,24 @@ def _shape_angles(n, rects, rotate, few):
     return angles
 
 
-# the free-scale shape search (docs/decisions/pack.md, release 2c): from 64 charts fit_scale (full
-# resolution trials); below, one raster in strips of several widths (fit_width). The raster is 512 texels
-# a side on meshes of >= 8192 faces (their commands take seconds; fandisk, camelhead, beetle), else 256
-# (cow 512 -> 256: 66.8 -> 62.8 %, 3x faster; the rest of a small mesh's command is short). Other chart
-# orders are tried on big meshes and for 5-8 charts (each order costs a placement of every chart; up to 4
-# charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the time). One
-# round of widths: a second one under the best density (another raster) took 30 % of the time for
-# -0.2..+0.6 points (cow +0.1, camelhead +0.6, fandisk -0.2). The coarse layout is compacted at full
-# resolution (uvbake.atlas.compact) only on meshes of >= 16384 faces and >= 8 charts (camelhead +0.7
-# points): it gains 0..+2.1 points on every coarse layout but costs 0.25-0.5 s CPU (cow's packing
-# 0.23 -> 0.75 s, fandisk's 0.25 -> 0.46 s: over 10 % of their commands); fit_scale's full-resolution
-# layouts gain nothing (xatlas:camelhead: no chart moves).
+# the free-scale shape search (docs/decisions/pack.md, releases 2c and 2e): from 64 charts fit_scale (full
+# resolution trials); below, one raster in strips of several widths (fit_width), 256 texels a side; on
+# meshes of >= 8192 faces (commands of seconds) with >= 12 charts also a whole search on a 512 raster, the
+# denser kept (camelhead +0.6, xatlas:beetle +0.6 points; fandisk, 11 charts, gains 3 points from 512 ->
+# 256 and cannot afford both). Other chart orders from 5 charts on (each order costs a placement of every
+# chart; up to 4 charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the
+# time): cow +2.5 points. One round of widths: a second one under the best density (another raster)
+# took 30 % of the time for -0.2..+0.6 points. The layout is compacted at full resolution
+# (uvbake.atlas.compact) on meshes of >= 8192 faces and >= 8 charts (fandisk +3.1 points): it gains
+# 0..+3 points on coarse layouts, but its fixed cost (full-resolution run tables, 0.1-0.15 s CPU even for
+# 4 charts) is over 10 % of a small mesh's command; fit_scale's full-resolution layouts gain nothing
+# (xatlas:camelhead: no chart moves).
 _FIT_SCALE_FROM = 64
-_COMPACT_FACES = 16384
+_COMPACT_FACES = 8192
 _COMPACT_CHARTS = 8
 _BIG_MESH_FACES = 8192
-_ORDERS_UP_TO = 8
+_ORDERS_FROM = 4
+_BOTH_RASTERS_FROM = 12
 
 
 def _fit_free_scale(packer, W, H, g, guess):
@@ -445,9 +446,13 @@ def _fit_free_scale(packer, W, H, g, guess):
         p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
-        p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess, rounds=1, coarse_px=512 if big else 256,
-                      order_packs=2 if big or 4 < n <= _ORDERS_UP_TO else 0)
+        start = guess if guess is not None else np.sqrt(0.5 * W * H / area)
+        orders = 2 if n > _ORDERS_FROM else 0
+        p = fit_width(packer, W, H, g, start, floor=guess, rounds=1, order_packs=orders)
+        if big and n >= _BOTH_RASTERS_FROM:         # a whole search on a raster twice finer
+            q = fit_width(packer, W, H, g, start, floor=guess, rounds=1, coarse_px=512, order_packs=orders)
+            if q is not None and (p is None or q.density > p.density):
+                p = q
     if p is None and guess is not None:
         return None
     if p is None:
