@@ -88,6 +88,26 @@ class _Grid:
         t.blocked[cx0:cx1, cy0:cy1] = b.T
         update_runs(t.blocked, t.run, t.rowmax, cx0, cx1, cy0, cy1)
 
+    def _box(self, dil, x, y, g):
+        H, W = dil.shape
+        y0, x0 = y - g, x - g
+        return max(y0, 0), max(x0, 0), min(y0 + H, self.count.shape[0]), min(x0 + W, self.count.shape[1])
+
+    def snapshot(self, dil, x, y, g):
+        """The row tables under a dilated footprint (rows it covers), for restore()."""
+        cy0, cx0, cy1, cx1 = self._box(dil, x, y, g)
+        a = self.atlas
+        return a.blocked[cy0:cy1].copy(), a.run[cy0:cy1].copy(), a.rowmax[cy0:cy1].copy()
+
+    def restore(self, snap, dil, x, y, g):
+        """Put back a footprint removed (add(..., -1, tables=1)) at the same place: counts added, row
+        tables copied from its snapshot() (a copy instead of recomputing the runs)."""
+        cy0, cx0, cy1, cx1 = self._box(dil, x, y, g)
+        y0, x0 = y - g, x - g
+        self.count[cy0:cy1, cx0:cx1] += dil[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
+        a = self.atlas
+        a.blocked[cy0:cy1], a.run[cy0:cy1], a.rowmax[cy0:cy1] = snap
+
     def refresh(self, tables=(0, 1)):
         """Recompute run tables from the counts (0: rows, 1: columns)."""
         b = (self.count > 0) | self.border
@@ -150,7 +170,9 @@ def slide(fps: list[np.ndarray], dil: list[np.ndarray], xy: np.ndarray, grid: _G
         moved = False
         for i in np.lexsort((xy[:, 0], xy[:, 1])):    # bottom edges first; one iteration per chart
             x, y = int(xy[i, 0]), int(xy[i, 1])
+            snap = grid.snapshot(dil[i], x, y, g)
             grid.add(dil[i], x, y, g, -1, tables=1)
+            x0, y0 = x, y
             for _ in range(8):                        # down, left, until it stops
                 ys = np.arange(m, y + 1)
                 ok = grid.fits(runs[i], np.full(len(ys), x), ys)
@@ -162,7 +184,10 @@ def slide(fps: list[np.ndarray], dil: list[np.ndarray], xy: np.ndarray, grid: _G
                     break
                 x, y, moved = nx, ny, True
             xy[i] = x, y
-            grid.add(dil[i], x, y, g, 1, tables=1)
+            if (x, y) == (x0, y0):                    # not moved: the tables as they were
+                grid.restore(snap, dil[i], x, y, g)
+            else:
+                grid.add(dil[i], x, y, g, 1, tables=1)
         if not moved:
             break
 
