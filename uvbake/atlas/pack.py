@@ -417,10 +417,10 @@ def _shape_angles(n, rects, rotate, few):
 
 
 # the free-scale shape search (docs/decisions/pack.md, releases 2c and 2e): from 64 charts fit_scale (full
-# resolution trials); below, one raster in strips of several widths (fit_width), 256 texels a side; on
-# meshes of >= 8192 faces (commands of seconds) with >= 12 charts also a whole search on a 512 raster, the
-# denser kept (camelhead +0.6, xatlas:beetle +0.6 points; fandisk, 11 charts, gains 3 points from 512 ->
-# 256 and cannot afford both). Other chart orders from 5 charts on (each order costs a placement of every
+# resolution trials); below, one raster in strips of several widths (fit_width), 256 texels a side (512
+# on big meshes before: fandisk 60.7 -> 63.8 % and 2x faster with 256; a second search on 512, the denser
+# kept, gave camelhead and xatlas:beetle +0.6 points for 0.2 s, 3 % of camelhead's command, not kept).
+# Other chart orders from 5 charts on (each order costs a placement of every
 # chart; up to 4 charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the
 # time): cow +2.5 points. One round of widths: a second one under the best density (another raster)
 # took 30 % of the time for -0.2..+0.6 points. The layout is compacted at full resolution
@@ -431,9 +431,7 @@ def _shape_angles(n, rects, rotate, few):
 _FIT_SCALE_FROM = 64
 _COMPACT_FACES = 8192
 _COMPACT_CHARTS = 8
-_BIG_MESH_FACES = 8192
 _ORDERS_FROM = 4
-_BOTH_RASTERS_FROM = 12
 
 
 def _fit_free_scale(packer, W, H, g, guess):
@@ -441,18 +439,12 @@ def _fit_free_scale(packer, W, H, g, guess):
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
-    big = faces >= _BIG_MESH_FACES
     if n >= _FIT_SCALE_FROM:
         p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
-        start = guess if guess is not None else np.sqrt(0.5 * W * H / area)
-        orders = 2 if n > _ORDERS_FROM else 0
-        p = fit_width(packer, W, H, g, start, floor=guess, rounds=1, order_packs=orders)
-        if big and n >= _BOTH_RASTERS_FROM:         # a whole search on a raster twice finer
-            q = fit_width(packer, W, H, g, start, floor=guess, rounds=1, coarse_px=512, order_packs=orders)
-            if q is not None and (p is None or q.density > p.density):
-                p = q
+        p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
+                      floor=guess, rounds=1, order_packs=2 if n > _ORDERS_FROM else 0)
     if p is None and guess is not None:
         return None
     if p is None:
