@@ -277,7 +277,8 @@ class _Atlas:
             raise RuntimeError("shape packer: row table shorter than the search window")
         win = np.ndarray((ny, h), rm.dtype, rm, 0, (rm.itemsize, rm.itemsize))
         ys = np.flatnonzero((win >= Lrow[None, :]).all(axis=1))
-        k0 = 0
+        k0, off = 0, None
+        flat, stride = self.run.reshape(-1), self.run.shape[1]     # a view: the table is contiguous
         while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
             yc = ys[k0:k0 + _CHUNK]
             k0 += _CHUNK
@@ -293,17 +294,18 @@ class _Atlas:
                 if k % 4 == 0 and (k >= 16 or np.count_nonzero(ok) < nx):
                     break                     # survivors go to the sparse phase, which stops at the first fit
             yi, xi = np.divmod(np.flatnonzero(ok), nx)       # row-major: bottom-left first
+            if k < len(dy) and len(yi) and off is None:
+                off = dy * stride + a                # the runs as offsets into the flat run table
             for b0 in range(0, len(yi), _BATCH):      # sparse phase: the other runs on the survivors
-                cy, cx = yc[yi[b0:b0 + _BATCH]], xi[b0:b0 + _BATCH]
+                at = yc[yi[b0:b0 + _BATCH]] * stride + xi[b0:b0 + _BATCH]
                 j, step = k, 4
-                while j < len(dy) and len(cy):        # runs in growing blocks; candidates shrink
+                while j < len(dy) and len(at):        # runs in growing blocks; candidates shrink
                     sel = slice(j, j + step)
-                    keep = (self.run[cy[:, None] + dy[None, sel], cx[:, None] + a[None, sel]]
-                            >= L[None, sel]).all(axis=1)
-                    cy, cx = cy[keep], cx[keep]
+                    at = at[(flat[at[:, None] + off[None, sel]] >= L[None, sel]).all(axis=1)]
                     j, step = j + step, step * 4
-                if len(cy):
-                    return int(cx[0]), int(cy[0])
+                if len(at):
+                    y, x = divmod(int(at[0]), stride)
+                    return x, y
         return None
 
     def place(self, fp_dilated, x, y, g, top):
