@@ -21,7 +21,7 @@ the atlas border, by construction.
 Method ``"auto"`` (the default) is "shape"; for a square atlas of at most 64 charts at a free scale it
 also runs "maxrects" and keeps the denser packing (near-rectangular charts, like sample_scenes/scene.ply,
 pack denser as boxes), or runs one alone when the charts fill their minimum-area boxes to >= 0.8 (boxes)
-or < 0.7 (shapes).
+or < 0.75 (shapes).
 
 Other placers plug in as ``method=placer`` (bench/packers.py wraps the peers xatlas and rectpack).
 
@@ -350,7 +350,7 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
 # of bench/pack.py boxes won every set filled >= 0.84 (by 0.8-26 points) and lost every set filled < 0.74
 # (by 5-14 points); in between both run (docs/decisions/pack.md, release 2c).
 _BOXES_ONLY_FILL = 0.8
-_SHAPES_ONLY_FILL = 0.7
+_SHAPES_ONLY_FILL = 0.75       # 0.7 before; bumpy (0.737) lost as boxes by 3 points, 20 % of its pack time (2e)
 
 
 def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
@@ -424,12 +424,12 @@ def _shape_angles(n, rects, rotate, few):
 # chart; up to 4 charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the
 # time): cow +2.5 points. One round of widths: a second one under the best density (another raster)
 # took 30 % of the time for -0.2..+0.6 points. The layout is compacted at full resolution
-# (uvbake.atlas.compact) on meshes of >= 8192 faces and >= 8 charts (fandisk +3.1 points): it gains
-# 0..+3 points on coarse layouts, but its fixed cost (full-resolution run tables, 0.1-0.15 s CPU even for
-# 4 charts) is over 10 % of a small mesh's command; fit_scale's full-resolution layouts gain nothing
-# (xatlas:camelhead: no chart moves).
+# (uvbake.atlas.compact) on meshes of >= 16384 faces and >= 8 charts: it gains 0..+3 points on coarse
+# layouts (fandisk, 14454 faces, +3.1), but its fixed cost (full-resolution run tables, 0.1-0.15 s CPU
+# even for 4 charts) is 5-10 % of the commands of fandisk and smaller meshes; fit_scale's
+# full-resolution layouts gain nothing (xatlas:camelhead: no chart moves).
 _FIT_SCALE_FROM = 64
-_COMPACT_FACES = 8192
+_COMPACT_FACES = 16384
 _COMPACT_CHARTS = 8
 _ORDERS_FROM = 4
 
