@@ -21,7 +21,7 @@ the atlas border, by construction.
 Method ``"auto"`` (the default) is "shape"; for a square atlas of at most 64 charts at a free scale it
 also runs "maxrects" and keeps the denser packing (near-rectangular charts, like sample_scenes/scene.ply,
 pack denser as boxes), or runs one alone when the charts fill their minimum-area boxes to >= 0.8 (boxes)
-or < 0.75 (shapes).
+or < 0.7 (shapes).
 
 Other placers plug in as ``method=placer`` (bench/packers.py wraps the peers xatlas and rectpack).
 
@@ -350,7 +350,7 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
 # of bench/pack.py boxes won every set filled >= 0.84 (by 0.8-26 points) and lost every set filled < 0.74
 # (by 5-14 points); in between both run (docs/decisions/pack.md, release 2c).
 _BOXES_ONLY_FILL = 0.8
-_SHAPES_ONLY_FILL = 0.75       # 0.7 before; bumpy (0.737) lost as boxes by 3 points, 20 % of its pack time (2e)
+_SHAPES_ONLY_FILL = 0.7
 
 
 def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
