@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -423,13 +423,16 @@ def _shape_angles(n, rects, rotate, few):
 # Other chart orders from 5 charts on (each order costs a placement of every
 # chart; up to 4 charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the
 # time): cow +2.5 points. One round of widths: a second one under the best density (another raster)
-# took 30 % of the time for -0.2..+0.6 points. The layout is compacted at full resolution
-# (uvbake.atlas.compact) on meshes of >= 16384 faces and >= 8 charts: it gains 0..+3 points on coarse
-# layouts (fandisk, 14454 faces, +3.1), but its fixed cost (full-resolution run tables, 0.1-0.15 s CPU
-# even for 4 charts) is 5-10 % of the commands of fandisk and smaller meshes; fit_scale's
-# full-resolution layouts gain nothing (xatlas:camelhead: no chart moves).
+# took 30 % of the time for -0.2..+0.6 points. The layout is compacted (uvbake.atlas.compact) when there
+# are >= 8 charts, at full resolution on meshes of >= 16384 faces, at half resolution (moves of 2 texels)
+# from 8192 faces: it gains 0..+3 points on coarse layouts (fandisk, 14454 faces: +3.1 at full, +2.4 at
+# half resolution), but its fixed cost (run tables of the whole atlas: 0.1-0.15 s CPU at full
+# resolution even for 4 charts, about a third of it at half) is 5-10 % of the commands of fandisk and
+# smaller meshes; on the raster the layout was packed on nothing moves (bottom-left fill is tight there);
+# fit_scale's full-resolution layouts gain nothing (xatlas:camelhead: no chart moves).
 _FIT_SCALE_FROM = 64
-_COMPACT_FACES = 16384
+_COMPACT_FACES = 8192
+_COMPACT_FULL_FACES = 16384
 _COMPACT_CHARTS = 8
 _ORDERS_FROM = 4
 
@@ -452,16 +455,20 @@ def _fit_free_scale(packer, W, H, g, guess):
                          f"take the room; reduce gutter_px or increase texture_size_px")
     p = scale_to_border(packer, p, W, H, g)
     if faces >= _COMPACT_FACES and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
-        p = _compacted(packer, p, W, H, g)
+        p = _compacted(packer, p, W, H, g, 1 if faces >= _COMPACT_FULL_FACES else 2)
     return p
 
 
-def _compacted(packer, p, W, H, g):
-    """``p`` compacted at full resolution (uvbake.atlas.compact) and scaled back to the border, when denser."""
+def _compacted(packer, p, W, H, g, c=1):
+    """``p`` compacted (uvbake.atlas.compact) on a raster ``c`` times coarser than the atlas (moves of ``c``
+    texels, gutter ``ceil(g / c)`` coarse texels: every distance scales by ``c``) and scaled back to the
+    border, when denser."""
     from uvbake.atlas.compact import compact
     from uvbake.atlas.fit import scale_to_border
 
-    q = scale_to_border(packer, compact(packer, p, W, H, g), W, H, g)
+    cg = -(-g // c)
+    q = compact(packer, replace(p, density=p.density / c, offset=p.offset / c), W // c, H // c, cg)
+    q = scale_to_border(packer, q, W, H, g, c, cg)
     return q if q is not None and q.density > p.density else p
 
 
