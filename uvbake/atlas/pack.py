@@ -420,9 +420,10 @@ def _shape_angles(n, rects, rotate, few):
 # resolution trials); below, one raster in strips of several widths (fit_width), 256 texels a side (512
 # on big meshes before: fandisk 60.7 -> 63.8 % and 2x faster with 256; a second search on 512, the denser
 # kept, gave camelhead and xatlas:beetle +0.6 points for 0.2 s, 3 % of camelhead's command, not kept).
-# Other chart orders from 5 charts on (each order costs a placement of every
-# chart; up to 4 charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the
-# time): cow +2.5 points. One round of widths: a second one under the best density (another raster)
+# Other chart orders for 5-8 charts, and from 5 charts on meshes of >= 8192 faces (each order costs a
+# placement of every chart; up to 4 charts already try 4 base angles, and orders added 0..+0.4 points
+# there at 40 % of the time; on cow, 5520 faces, 33 charts, they gain 2.5 points but double the packing,
+# 5 -> 10 % of its command). One round of widths: a second one under the best density (another raster)
 # took 30 % of the time for -0.2..+0.6 points. The layout is compacted (uvbake.atlas.compact) when there
 # are >= 8 charts, at full resolution on meshes of >= 16384 faces, at half resolution (moves of 2 texels)
 # from 8192 faces: it gains 0..+3 points on coarse layouts (fandisk, 14454 faces: +3.1 at full, +2.4 at
@@ -431,10 +432,11 @@ def _shape_angles(n, rects, rotate, few):
 # smaller meshes; on the raster the layout was packed on nothing moves (bottom-left fill is tight there);
 # fit_scale's full-resolution layouts gain nothing (xatlas:camelhead: no chart moves).
 _FIT_SCALE_FROM = 64
-_COMPACT_FACES = 8192
-_COMPACT_FULL_FACES = 16384
+_BIG_MESH_FACES = 8192          # orders for any chart count, compaction at half resolution
+_COMPACT_FULL_FACES = 16384     # compaction at full resolution
 _COMPACT_CHARTS = 8
 _ORDERS_FROM = 4
+_ORDERS_UP_TO = 8
 
 
 def _fit_free_scale(packer, W, H, g, guess):
@@ -442,19 +444,21 @@ def _fit_free_scale(packer, W, H, g, guess):
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
+    big = faces >= _BIG_MESH_FACES
     if n >= _FIT_SCALE_FROM:
         p = fit_scale(packer, W, H, g, fine_packs=2, guess=guess, beat_guess=guess is not None)
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess, rounds=1, order_packs=2 if n > _ORDERS_FROM else 0)
+                      floor=guess, rounds=1,
+                      order_packs=2 if _ORDERS_FROM < n and (n <= _ORDERS_UP_TO or big) else 0)
     if p is None and guess is not None:
         return None
     if p is None:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
                          f"take the room; reduce gutter_px or increase texture_size_px")
     p = scale_to_border(packer, p, W, H, g)
-    if faces >= _COMPACT_FACES and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
+    if big and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
         p = _compacted(packer, p, W, H, g, 1 if faces >= _COMPACT_FULL_FACES else 2)
     return p
 
