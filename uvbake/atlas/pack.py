@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.atlas.maxrects import _RULES, _own_packers, _pack_boxes, min_area_rect, rotation_2d
+from uvbake.atlas.maxrects import _RULES, _own_packers, _pack_boxes, min_area_rects, rotation_2d
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import signed_areas
 
@@ -240,7 +240,7 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
     rotation, offset, placed UVs, measured gap in texels or None).
     """
     pad = g / N + _EPS_PAD
-    rects = [min_area_rect(uv) for uv in uvs] if rects is None else rects
+    rects = min_area_rects(uvs) if rects is None else rects
     wh = np.array([[w, h] for _, w, h in rects])
     if packers is None:
         packers = _own_packers(wh, rules=rules)
@@ -361,7 +361,7 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
     search is skipped; the shape search gives up once it cannot beat the boxes.
     """
     boxes = None
-    rects = np.array([min_area_rect(uv) for uv in uvs]) if rotate else None
+    rects = min_area_rects(uvs) if rotate else None
     if try_boxes and W == H and density is None and len(uvs) <= 64:
         fill = _box_fill(uvs, faces, rects)
         if len(uvs) == 1 or fill >= _SHAPES_ONLY_FILL:
