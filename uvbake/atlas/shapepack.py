@@ -369,6 +369,19 @@ class ShapePacker:
             if not any(np.array_equal(o, q) for q in self.orders):
                 self.orders.append(o)
         self._density, self._cands, self._dilated = None, {}, {}          # footprints at the last density
+        self._hulls = None
+
+    def hull_points(self):
+        """Every chart's convex hull vertices stacked (charts of under 3 vertices: all of them), and the
+        chart each belongs to; computed once."""
+        if self._hulls is None:
+            from uvbake.atlas.maxrects import convex_hulls_2d
+
+            big = [i for i, uv in enumerate(self.uvs) if len(uv) >= 3]
+            hulls = dict(zip(big, convex_hulls_2d([self.uvs[i] for i in big])))
+            pts = [uv[hulls[i]] if i in hulls else uv for i, uv in enumerate(self.uvs)]
+            self._hulls = (np.concatenate(pts), np.repeat(np.arange(len(pts)), [len(q) for q in pts]))
+        return self._hulls
 
     def _order_keys(self):
         """Keys of the other chart orders the searches may try (biggest first by each): boundary length,
