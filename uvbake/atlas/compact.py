@@ -24,7 +24,6 @@ from uvbake.atlas.shapepack import (
     _Atlas,
     _dilate,
     _free_runs,
-    _raw_runs,
     _runs,
     footprint,
     update_runs,
@@ -132,13 +131,16 @@ class _Grid:
     def fits(self, runs, xs, ys):
         """Which positions ``(xs[k], ys[k])`` leave every footprint run on free texels."""
         dy, a, L = runs
+        stride = self.atlas.run.shape[1]
+        flat, off = self.atlas.run.reshape(-1), dy * stride + a     # one index array per gather
+        at = ys * stride + xs
         ok = np.ones(len(xs), bool)
         for k0 in range(0, len(dy), 32):          # blocks of runs; candidates shrink
             idx = np.flatnonzero(ok)
             if len(idx) == 0:
                 break
             sl = slice(k0, k0 + 32)
-            ok[idx] = (self.run[ys[idx, None] + dy[None, sl], xs[idx, None] + a[None, sl]] >= L[None, sl]).all(axis=1)
+            ok[idx] = (flat[at[idx, None] + off[None, sl]] >= L[None, sl]).all(axis=1)
         return ok
 
 
@@ -165,7 +167,7 @@ def slide(fps: list[np.ndarray], dil: list[np.ndarray], xy: np.ndarray, grid: _G
     then left, as far as free texels allow, bottom edges first, ``passes`` times over all charts (fewer
     when nothing moves). Needs the grid's row tables fresh; leaves them fresh."""
     m = grid.atlas.m
-    runs = [_raw_runs(fp) for fp in fps]
+    runs = [_runs(fp) for fp in fps]               # spread rows first: most positions fail sooner
     for _ in range(passes):
         moved = False
         for i in np.lexsort((xy[:, 0], xy[:, 1])):    # bottom edges first; one iteration per chart
