@@ -214,7 +214,8 @@ def _free_runs(blocked, after=None):
     return run
 
 
-def update_runs(blocked, run, rowmax, r0, r1, c0, c1):
+def update_runs(blocked: np.ndarray, run: np.ndarray, rowmax: np.ndarray, r0: int, r1: int, c0: int,
+                c1: int) -> None:
     """Refresh the free-run tables of rows ``r0:r1`` after their blocked texels changed in columns
     ``c0:c1`` only: a run starting right of ``c1`` or ending (at a blocked texel) left of ``c0`` is
     unchanged, so each row is recomputed from its last blocked texel left of ``c0`` to ``c1``."""
@@ -280,8 +281,7 @@ class _Atlas:
             raise RuntimeError("shape packer: row table shorter than the search window")
         win = np.ndarray((ny, h), rm.dtype, rm, 0, (rm.itemsize, rm.itemsize))
         ys = np.flatnonzero((win >= Lrow[None, :]).all(axis=1))
-        k0, off = 0, None
-        flat, stride = self.run.reshape(-1), self.run.shape[1]     # a view: the table is contiguous
+        k0, stride = 0, self.run.shape[1]
         while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
             yc = ys[k0:k0 + _CHUNK]
             k0 += _CHUNK
@@ -297,18 +297,28 @@ class _Atlas:
                 if k % 4 == 0 and (k >= 16 or np.count_nonzero(ok) < nx):
                     break                     # survivors go to the sparse phase, which stops at the first fit
             yi, xi = np.divmod(np.flatnonzero(ok), nx)       # row-major: bottom-left first
-            if k < len(dy) and len(yi) and off is None:
-                off = dy * stride + a                # the runs as offsets into the flat run table
-            for b0 in range(0, len(yi), _BATCH):      # sparse phase: the other runs on the survivors
-                at = yc[yi[b0:b0 + _BATCH]] * stride + xi[b0:b0 + _BATCH]
-                j, step = k, 4
-                while j < len(dy) and len(at):        # runs in growing blocks; candidates shrink
-                    sel = slice(j, j + step)
-                    at = at[(flat[at[:, None] + off[None, sel]] >= L[None, sel]).all(axis=1)]
-                    j, step = j + step, step * 4
-                if len(at):
-                    y, x = divmod(int(at[0]), stride)
-                    return x, y
+            if len(yi):
+                pos = self._first_fit(yc[yi] * stride + xi, runs, k)
+                if pos is not None:
+                    return pos
+        return None
+
+    def _first_fit(self, at, runs, k):
+        """find()'s sparse phase: the first of the flat positions ``at`` (row-major) where runs ``k:`` fit
+        too, as (x, y), or None. The runs are tested as offsets into the flat run table (one index array
+        per gather), in growing blocks while the candidates shrink, a batch of positions at a time."""
+        dy, a, L = runs
+        stride = self.run.shape[1]
+        flat, off = self.run.reshape(-1), dy * stride + a       # a view: the table is contiguous
+        for b0 in range(0, len(at), _BATCH):
+            cand, j, step = at[b0:b0 + _BATCH], k, 4
+            while j < len(dy) and len(cand):
+                sel = slice(j, j + step)
+                cand = cand[(flat[cand[:, None] + off[None, sel]] >= L[None, sel]).all(axis=1)]
+                j, step = j + step, step * 4
+            if len(cand):
+                y, x = divmod(int(cand[0]), stride)
+                return x, y
         return None
 
     def place(self, fp_dilated, x, y, g, top):
@@ -371,7 +381,7 @@ class ShapePacker:
         self._density, self._cands, self._dilated = None, {}, {}          # footprints at the last density
         self._hulls = None
 
-    def hull_points(self):
+    def hull_points(self) -> tuple[np.ndarray, np.ndarray]:
         """Every chart's convex hull vertices stacked (charts of under 3 vertices: all of them), and the
         chart each belongs to; computed once."""
         if self._hulls is None:
