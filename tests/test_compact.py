@@ -87,3 +87,17 @@ def test_compaction_is_deterministic():
 def test_a_layout_outside_the_atlas_is_returned_unchanged():
     packer, faces, p = coarse_layout(0, 512, 4)
     assert compact(packer, p, 256, 256, 4) is p
+
+
+@pytest.mark.parametrize("seed,g,c", [(0, 4, 2), (2, 5, 2), (7, 4, 4)])
+def test_compaction_on_a_coarser_raster_keeps_the_gutter_and_is_not_sparser(seed, g, c):
+    """pack._compacted on a raster c times coarser: gutter ceil(g / c) coarse texels is >= g once
+    scaled back by c, so the result keeps the exact gutter and border margin."""
+    from uvbake.atlas.pack import _compacted
+
+    packer, faces, p = coarse_layout(seed, 512, g)
+    q = _compacted(packer, p, 512, 512, g, c)
+    assert q.density >= p.density
+    assert_valid(packer, faces, q, 512, g)
+    if c == 2:                   # a 4x coarser layout has slack at half resolution: something moves
+        assert q is not p and q.density > p.density

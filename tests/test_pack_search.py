@@ -101,7 +101,7 @@ def test_box_fill_is_chart_area_over_minimum_rectangle_area():
     uv, F = grid_chart(2, 2, 2.0, 1.0, theta=0.6)               # a rectangle, turned: fill 1
     rng = np.random.default_rng(3)
     star, Fs = star_chart(rng, n=10)
-    rects = np.array([pack_module.min_area_rect(u) for u in (uv, star)])
+    rects = pack_module.min_area_rects([uv, star])
     fill = pack_module._box_fill([uv, star], [F, Fs], rects)
     area_star = np.abs(signed_areas(star, Fs)).sum()
     assert fill == pytest.approx((2.0 + area_star) / (2.0 + rects[1, 1] * rects[1, 2]), rel=1e-9)

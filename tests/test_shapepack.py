@@ -318,6 +318,32 @@ def test_convex_hull_matches_qhull_up_to_rounding():
             assert set(map(tuple, H)) == set(map(tuple, P[q.vertices]))
 
 
+def test_hulls_of_many_sets_at_once_are_those_of_each_set_alone():
+    """convex_hulls_2d runs the quickhull rounds of every set together (each hull a block of one list):
+    the same indices in the same order as convex_hull_2d set by set, whatever the mix of sizes, scales
+    (tolerances are per set) and degenerate sets; min_area_rects likewise equals min_area_rect."""
+    from uvbake.atlas.maxrects import convex_hull_2d, convex_hulls_2d, min_area_rect, min_area_rects
+
+    rng = np.random.default_rng(8)
+    sets = []
+    for k in range(40):
+        n = int(rng.integers(3, 300))
+        P = rng.normal(size=(n, 2)) * [1.0, rng.uniform(0.01, 3.0)] * 10.0 ** rng.integers(-6, 4)
+        if k % 3 == 0:
+            t = rng.uniform(0, 2 * np.pi, n)
+            P = np.column_stack([np.cos(t), np.sin(t)])
+        if k % 4 == 0:
+            P = np.round(P * 4) / 4
+        sets.append(P)
+    sets += [np.zeros((4, 2)), np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]),
+             np.array([[1.0, 2.0]] * 3)]
+    rng.shuffle(sets)
+    for h, P in zip(convex_hulls_2d(sets), sets):
+        np.testing.assert_array_equal(h, convex_hull_2d(P))
+    sets += [np.array([[0.0, 0.0], [2.0, 1.0]]), np.array([[5.0, 5.0]])]     # under 3 points: the points
+    np.testing.assert_array_equal(min_area_rects(sets), np.array([min_area_rect(P) for P in sets]))
+
+
 def test_calipers_find_the_minimum_area_rectangle_of_every_hull():
     from uvbake.atlas.maxrects import _hull_points, min_area_rect
 

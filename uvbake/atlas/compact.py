@@ -18,14 +18,15 @@ import numpy as np
 
 from uvbake.atlas.shapepack import (
     _EPS,
+    _RUN,
     ShapePacker,
     ShapePacking,
     _Atlas,
     _dilate,
     _free_runs,
-    _raw_runs,
     _runs,
     footprint,
+    update_runs,
 )
 
 
@@ -61,8 +62,8 @@ class _Grid:
         a.w, a.limit, a.m, a.top = width, height, margin, height - margin - 1
         a.blocked = np.ones((2 * height, width), bool)
         a.blocked[:height] = blocked
-        a.run = np.zeros((2 * height, width), np.int32)
-        a.rowmax = np.zeros(2 * height, np.int32)
+        a.run = np.zeros((2 * height, width), _RUN)
+        a.rowmax = np.zeros(2 * height, _RUN)
         return a
 
     def add(self, dil, x, y, g, sign, tables=2):
@@ -75,18 +76,36 @@ class _Grid:
         self.count[cy0:cy1, cx0:cx1] += sign * dil[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
         if tables == 0:
             return
-        b = (self.count[cy0:cy1] > 0) | self.border[cy0:cy1]
+        # only the texels under the footprint changed: blocked flags there, run tables around them
+        b = (self.count[cy0:cy1, cx0:cx1] > 0) | self.border[cy0:cy1, cx0:cx1]
         a = self.atlas
-        a.blocked[cy0:cy1] = b
-        a.run[cy0:cy1] = _free_runs(b)
-        a.rowmax[cy0:cy1] = a.run[cy0:cy1].max(axis=1)
+        a.blocked[cy0:cy1, cx0:cx1] = b
+        update_runs(a.blocked, a.run, a.rowmax, cy0, cy1, cx0, cx1)
         if tables == 1:
             return
-        bt = ((self.count[:, cx0:cx1] > 0) | self.border[:, cx0:cx1]).T
         t = self.atlasT
-        t.blocked[cx0:cx1] = bt
-        t.run[cx0:cx1] = _free_runs(bt)
-        t.rowmax[cx0:cx1] = t.run[cx0:cx1].max(axis=1)
+        t.blocked[cx0:cx1, cy0:cy1] = b.T
+        update_runs(t.blocked, t.run, t.rowmax, cx0, cx1, cy0, cy1)
+
+    def _box(self, dil, x, y, g):
+        H, W = dil.shape
+        y0, x0 = y - g, x - g
+        return max(y0, 0), max(x0, 0), min(y0 + H, self.count.shape[0]), min(x0 + W, self.count.shape[1])
+
+    def snapshot(self, dil, x, y, g):
+        """The row tables under a dilated footprint (rows it covers), for restore()."""
+        cy0, cx0, cy1, cx1 = self._box(dil, x, y, g)
+        a = self.atlas
+        return a.blocked[cy0:cy1].copy(), a.run[cy0:cy1].copy(), a.rowmax[cy0:cy1].copy()
+
+    def restore(self, snap, dil, x, y, g):
+        """Put back a footprint removed (add(..., -1, tables=1)) at the same place: counts added, row
+        tables copied from its snapshot() (a copy instead of recomputing the runs)."""
+        cy0, cx0, cy1, cx1 = self._box(dil, x, y, g)
+        y0, x0 = y - g, x - g
+        self.count[cy0:cy1, cx0:cx1] += dil[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
+        a = self.atlas
+        a.blocked[cy0:cy1], a.run[cy0:cy1], a.rowmax[cy0:cy1] = snap
 
     def refresh(self, tables=(0, 1)):
         """Recompute run tables from the counts (0: rows, 1: columns)."""
@@ -112,13 +131,16 @@ class _Grid:
     def fits(self, runs, xs, ys):
         """Which positions ``(xs[k], ys[k])`` leave every footprint run on free texels."""
         dy, a, L = runs
+        stride = self.atlas.run.shape[1]
+        flat, off = self.atlas.run.reshape(-1), dy * stride + a     # one index array per gather
+        at = ys * stride + xs
         ok = np.ones(len(xs), bool)
         for k0 in range(0, len(dy), 32):          # blocks of runs; candidates shrink
             idx = np.flatnonzero(ok)
             if len(idx) == 0:
                 break
             sl = slice(k0, k0 + 32)
-            ok[idx] = (self.run[ys[idx, None] + dy[None, sl], xs[idx, None] + a[None, sl]] >= L[None, sl]).all(axis=1)
+            ok[idx] = (flat[at[idx, None] + off[None, sl]] >= L[None, sl]).all(axis=1)
         return ok
 
 
@@ -145,12 +167,14 @@ def slide(fps: list[np.ndarray], dil: list[np.ndarray], xy: np.ndarray, grid: _G
     then left, as far as free texels allow, bottom edges first, ``passes`` times over all charts (fewer
     when nothing moves). Needs the grid's row tables fresh; leaves them fresh."""
     m = grid.atlas.m
-    runs = [_raw_runs(fp) for fp in fps]
+    runs = [_runs(fp) for fp in fps]               # spread rows first: most positions fail sooner
     for _ in range(passes):
         moved = False
         for i in np.lexsort((xy[:, 0], xy[:, 1])):    # bottom edges first; one iteration per chart
             x, y = int(xy[i, 0]), int(xy[i, 1])
+            snap = grid.snapshot(dil[i], x, y, g)
             grid.add(dil[i], x, y, g, -1, tables=1)
+            x0, y0 = x, y
             for _ in range(8):                        # down, left, until it stops
                 ys = np.arange(m, y + 1)
                 ok = grid.fits(runs[i], np.full(len(ys), x), ys)
@@ -162,7 +186,10 @@ def slide(fps: list[np.ndarray], dil: list[np.ndarray], xy: np.ndarray, grid: _G
                     break
                 x, y, moved = nx, ny, True
             xy[i] = x, y
-            grid.add(dil[i], x, y, g, 1, tables=1)
+            if (x, y) == (x0, y0):                    # not moved: the tables as they were
+                grid.restore(snap, dil[i], x, y, g)
+            else:
+                grid.add(dil[i], x, y, g, 1, tables=1)
         if not moved:
             break
 

@@ -176,13 +176,13 @@ def _reach(packer, p, width, height, g, c):
 
 
 def _layout_box(packer, p):
-    """Lower and upper corner of the box around every chart of the packing ``p`` (its texels)."""
-    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    for i, (uv, th) in enumerate(zip(packer.uvs, p.rotation)):      # one iteration per chart
-        co, si = np.cos(th), np.sin(th)
-        q = p.density * (uv @ np.array([[co, si], [-si, co]])) + p.offset[i]
-        lo, hi = np.minimum(lo, q.min(axis=0)), np.maximum(hi, q.max(axis=0))
-    return lo, hi
+    """Lower and upper corner of the box around every chart of the packing ``p`` (its texels), from the
+    charts' convex hull vertices (the extremes of a rotated chart are hull vertices), all charts at once."""
+    P, cid = packer.hull_points()
+    co, si = np.cos(p.rotation)[cid], np.sin(p.rotation)[cid]
+    x = p.density * (P[:, 0] * co - P[:, 1] * si) + p.offset[cid, 0]
+    y = p.density * (P[:, 0] * si + P[:, 1] * co) + p.offset[cid, 1]
+    return np.array([x.min(), y.min()]), np.array([x.max(), y.max()])
 
 
 def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor, order=None):

@@ -32,33 +32,53 @@ def convex_hull_2d(P: np.ndarray) -> np.ndarray:
     (quickhull, every hull edge of a round split at once; points within a few rounding errors of an edge's
     line are not vertices). Hand-written: scipy.spatial's import alone costs about 0.13 s of CPU, a
     third of a small mesh's unwrap, for one hull per chart."""
-    P = np.asarray(P, dtype=np.float64)
-    o = np.lexsort((P[:, 1], P[:, 0]))
-    i0, i1 = int(o[0]), int(o[-1])
-    tol = 8 * np.finfo(float).eps * float(np.ptp(P, axis=0).max()) ** 2
-    hull = np.array([i0, i1])
+    return convex_hulls_2d([P])[0]
+
+
+def convex_hulls_2d(Ps: list) -> list:
+    """convex_hull_2d of every point set of ``Ps`` at once: the quickhull rounds run on all sets together
+    (each set's hull is a block of one cyclic list), so a round costs the same numpy calls for 1 or 100
+    charts (cow's 33 hulls: 15 -> 2 ms). Same indices, in the same order, as one set at a time."""
+    Ps = [np.asarray(P, dtype=np.float64).reshape(-1, 2) for P in Ps]
+    sizes = np.array([len(P) for P in Ps], np.int64)
+    off = np.r_[0, np.cumsum(sizes)[:-1]].astype(np.int64)
+    P = np.concatenate(Ps)
+    k = len(Ps)
+    cid = np.repeat(np.arange(k), sizes)
+    o = np.lexsort((P[:, 1], P[:, 0], cid))
+    i0, i1 = o[off], o[off + sizes - 1]
+    ext = np.maximum.reduceat(P, off, axis=0) - np.minimum.reduceat(P, off, axis=0)
+    tol = 8 * np.finfo(float).eps * ext.max(axis=1) ** 2
+    hull, hc = np.column_stack([i0, i1]).ravel(), np.repeat(np.arange(k), 2)
     pts = np.arange(len(P))
-    c = _cross(P, i0, i1, pts)
-    seg = np.where(c < -tol, 0, np.where(c > tol, 1, -1))      # outside edge k: right of hull[k] -> hull[k+1]
+    c, t = _cross(P, i0[cid], i1[cid], pts), tol[cid]
+    seg = np.where(c < -t, 2 * cid, np.where(c > t, 2 * cid + 1, -1))  # outside edge j: right of hull[j] -> next
     pts, seg = pts[seg >= 0], seg[seg >= 0]
     while len(pts):                                              # rounds: each adds a vertex to every open edge
         h = len(hull)
-        a, b = hull[seg], hull[(seg + 1) % h]
+        start = np.flatnonzero(np.r_[True, hc[1:] != hc[:-1]])  # each set's block of the cyclic hull list
+        nxt = np.arange(1, h + 1)
+        nxt[np.r_[start[1:], h] - 1] = start
+        a, b = hull[seg], hull[nxt[seg]]
         d = -_cross(P, a, b, pts)
         order = np.lexsort((pts, -d, seg))                       # farthest first, ties by index
         first = order[np.r_[True, seg[order][1:] != seg[order][:-1]]]
         far = np.full(h, -1)
         far[seg[first]] = pts[first]
         pos = np.arange(h) + np.r_[0, np.cumsum(far >= 0)[:-1]]  # each old vertex's new index
+        new = far >= 0
         hull = np.column_stack([hull, far]).ravel()
-        hull = hull[hull >= 0]
+        hc = np.column_stack([hc, np.where(new, hc, -1)]).ravel()
+        hc, hull = hc[hull >= 0], hull[hull >= 0]
         f = far[seg]
-        left = _cross(P, a, f, pts) < -tol
-        right = ~left & (_cross(P, f, b, pts) < -tol)
+        t = tol[cid[pts]]
+        left = _cross(P, a, f, pts) < -t
+        right = ~left & (_cross(P, f, b, pts) < -t)
         seg = np.where(left, pos[seg], pos[seg] + 1)
         keep = left | right
         pts, seg = pts[keep], seg[keep]
-    return hull
+    counts = np.bincount(hc, minlength=k)
+    return [hs - off[j] for j, hs in enumerate(np.split(hull, np.cumsum(counts)[:-1]))]
 
 
 def min_area_rect(P: np.ndarray) -> tuple[float, float, float]:
@@ -67,8 +87,20 @@ def min_area_rect(P: np.ndarray) -> tuple[float, float, float]:
     Returns ``(theta, w, h)``: rotating the points by ``theta`` (counter-clockwise, radians) makes the
     rectangle axis-aligned with width ``w >= h``. Vectorised over hull edges.
     """
-    P = np.asarray(P, dtype=np.float64)
-    H = _hull_points(P)
+    return _rect_of_hull(_hull_points(np.asarray(P, dtype=np.float64)))
+
+
+def min_area_rects(Ps: list) -> np.ndarray:
+    """min_area_rect of every point set of ``Ps`` as a (n,3) array, the hulls found together
+    (convex_hulls_2d)."""
+    Ps = [np.asarray(P, dtype=np.float64) for P in Ps]
+    big = [i for i, P in enumerate(Ps) if len(P) >= 3]
+    hulls = dict(zip(big, convex_hulls_2d([Ps[i] for i in big])))
+    return np.array([_rect_of_hull(P[hulls[i]] if i in hulls else P) for i, P in enumerate(Ps)]).reshape(-1, 3)
+
+
+def _rect_of_hull(H):
+    """min_area_rect from the hull vertices ``H`` (ccw; or up to two points)."""
     H = H - H.mean(axis=0)
     if len(H) < 2 or np.ptp(H, axis=0).max() == 0.0:
         return 0.0, 0.0, 0.0

@@ -40,13 +40,13 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.atlas.maxrects import _RULES, _own_packers, _pack_boxes, min_area_rect, rotation_2d
+from uvbake.atlas.maxrects import _RULES, _own_packers, _pack_boxes, min_area_rects, rotation_2d
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import signed_areas
 
@@ -240,7 +240,7 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
     rotation, offset, placed UVs, measured gap in texels or None).
     """
     pad = g / N + _EPS_PAD
-    rects = [min_area_rect(uv) for uv in uvs] if rects is None else rects
+    rects = min_area_rects(uvs) if rects is None else rects
     wh = np.array([[w, h] for _, w, h in rects])
     if packers is None:
         packers = _own_packers(wh, rules=rules)
@@ -361,7 +361,7 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
     search is skipped; the shape search gives up once it cannot beat the boxes.
     """
     boxes = None
-    rects = np.array([min_area_rect(uv) for uv in uvs]) if rotate else None
+    rects = min_area_rects(uvs) if rotate else None
     if try_boxes and W == H and density is None and len(uvs) <= 64:
         fill = _box_fill(uvs, faces, rects)
         if len(uvs) == 1 or fill >= _SHAPES_ONLY_FILL:
@@ -416,22 +416,26 @@ def _shape_angles(n, rects, rotate, few):
     return angles
 
 
-# the free-scale shape search (docs/decisions/pack.md, release 2c): from 64 charts fit_scale (full
-# resolution trials); below, one raster in strips of several widths (fit_width). The raster is 512 texels
-# a side on meshes of >= 8192 faces (their commands take seconds; fandisk, camelhead, beetle), else 256
-# (cow 512 -> 256: 66.8 -> 62.8 %, 3x faster; the rest of a small mesh's command is short). Other chart
-# orders are tried on big meshes and for 5-8 charts (each order costs a placement of every chart; up to 4
-# charts already try 4 base angles, and orders added 0..+0.4 points there at 40 % of the time). One
-# round of widths: a second one under the best density (another raster) took 30 % of the time for
-# -0.2..+0.6 points (cow +0.1, camelhead +0.6, fandisk -0.2). The coarse layout is compacted at full
-# resolution (uvbake.atlas.compact) only on meshes of >= 16384 faces and >= 8 charts (camelhead +0.7
-# points): it gains 0..+2.1 points on every coarse layout but costs 0.25-0.5 s CPU (cow's packing
-# 0.23 -> 0.75 s, fandisk's 0.25 -> 0.46 s: over 10 % of their commands); fit_scale's full-resolution
-# layouts gain nothing (xatlas:camelhead: no chart moves).
+# the free-scale shape search (docs/decisions/pack.md, releases 2c and 2e): from 64 charts fit_scale (full
+# resolution trials); below, one raster in strips of several widths (fit_width), 256 texels a side (512
+# on big meshes before: fandisk 60.7 -> 63.8 % and 2x faster with 256; a second search on 512, the denser
+# kept, gave camelhead and xatlas:beetle +0.6 points for 0.2 s, 3 % of camelhead's command, not kept).
+# Other chart orders for 5-8 charts, and from 5 charts on meshes of >= 8192 faces (each order costs a
+# placement of every chart; up to 4 charts already try 4 base angles, and orders added 0..+0.4 points
+# there at 40 % of the time; on cow, 5520 faces, 33 charts, they gain 2.5 points but double the packing,
+# 5 -> 10 % of its command). One round of widths: a second one under the best density (another raster)
+# took 30 % of the time for -0.2..+0.6 points. The layout is compacted (uvbake.atlas.compact) when there
+# are >= 8 charts, at full resolution on meshes of >= 16384 faces, at half resolution (moves of 2 texels)
+# from 8192 faces: it gains 0..+3 points on coarse layouts (fandisk, 14454 faces: +3.1 at full, +2.4 at
+# half resolution), but its fixed cost (run tables of the whole atlas: 0.1-0.15 s CPU at full
+# resolution even for 4 charts, about a third of it at half) is 5-10 % of the commands of fandisk and
+# smaller meshes; on the raster the layout was packed on nothing moves (bottom-left fill is tight there);
+# fit_scale's full-resolution layouts gain nothing (xatlas:camelhead: no chart moves).
 _FIT_SCALE_FROM = 64
-_COMPACT_FACES = 16384
+_BIG_MESH_FACES = 8192          # orders for any chart count, compaction at half resolution
+_COMPACT_FULL_FACES = 16384     # compaction at full resolution
 _COMPACT_CHARTS = 8
-_BIG_MESH_FACES = 8192
+_ORDERS_FROM = 4
 _ORDERS_UP_TO = 8
 
 
@@ -446,25 +450,29 @@ def _fit_free_scale(packer, W, H, g, guess):
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess, rounds=1, coarse_px=512 if big else 256,
-                      order_packs=2 if big or 4 < n <= _ORDERS_UP_TO else 0)
+                      floor=guess, rounds=1,
+                      order_packs=2 if _ORDERS_FROM < n and (n <= _ORDERS_UP_TO or big) else 0)
     if p is None and guess is not None:
         return None
     if p is None:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
                          f"take the room; reduce gutter_px or increase texture_size_px")
     p = scale_to_border(packer, p, W, H, g)
-    if faces >= _COMPACT_FACES and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
-        p = _compacted(packer, p, W, H, g)
+    if big and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
+        p = _compacted(packer, p, W, H, g, 1 if faces >= _COMPACT_FULL_FACES else 2)
     return p
 
 
-def _compacted(packer, p, W, H, g):
-    """``p`` compacted at full resolution (uvbake.atlas.compact) and scaled back to the border, when denser."""
+def _compacted(packer, p, W, H, g, c=1):
+    """``p`` compacted (uvbake.atlas.compact) on a raster ``c`` times coarser than the atlas (moves of ``c``
+    texels, gutter ``ceil(g / c)`` coarse texels: every distance scales by ``c``) and scaled back to the
+    border, when denser."""
     from uvbake.atlas.compact import compact
     from uvbake.atlas.fit import scale_to_border
 
-    q = scale_to_border(packer, compact(packer, p, W, H, g), W, H, g)
+    cg = -(-g // c)
+    q = compact(packer, replace(p, density=p.density / c, offset=p.offset / c), W // c, H // c, cg)
+    q = scale_to_border(packer, q, W, H, g, c, cg)
     return q if q is not None and q.density > p.density else p
 
 
