@@ -78,3 +78,12 @@ def test_the_command_line_switch(tmp_path):
         r = json.loads(rep.read_text())
         charts[bool(flag)] = (r["charts_final"], sum(s["reason"] == "packing" for s in r["splits"]))
     assert charts[True] == (1, 0) and charts[False][0] >= 1 + charts[False][1] and charts[False][1] >= 1
+
+
+def test_a_fixed_texel_density_is_kept_through_packing_splits():
+    """With --texel-density the atlas grows instead of scaling: splits are judged on full packings
+    (the rectangle packer chooses its own scale) and the density stays the one asked for."""
+    V, F = _strip()
+    res = uvbake.unwrap((V, F), alpha=0.5, texture_size_px=None, texel_density=64.0)
+    assert res.report["valid"]
+    assert res.report["atlas"]["texel_density"] == pytest.approx(64.0, rel=1e-9)

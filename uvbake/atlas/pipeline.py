@@ -425,7 +425,9 @@ def _pack_and_validate(run, pack_options):
         def trial(uvs, Fs):                            # judging a split: the fast rectangle packer
             return pack_charts(uvs, Fs, **(pack_options | {"method": "maxrects"}))
 
-        run.charts, run.results, packed, split = split_for_packing(run.charts, run.results, pack, trial_pack=trial,
+        # the rectangle packer places at a scale of its own: with a fixed texel density, trials are full packings
+        fast = trial if pack_options.get("texel_density") is None else None
+        run.charts, run.results, packed, split = split_for_packing(run.charts, run.results, pack, trial_pack=fast,
                                                                    max_charts=run.opts["max_charts"])
         run.splits = list(run.splits) + split
     else:
