@@ -407,15 +407,6 @@ def _count_pieces(F, n_vertices, labels):
                                     directed=False)[0])
 
 
-def maxrects(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int) -> Any:
-    """A placer (:func:`uvbake.atlas.pack.pack_charts`): MaxRects with the two placement rules "auto"
-    runs (within 1 % of all five's density at 30-75 % of the time, docs/decisions/pack.md), for
-    judging packing splits."""
-    from uvbake.atlas.pack import _AUTO_RULES, place_boxes
-
-    return place_boxes(uvs, faces, N, g, rules=_AUTO_RULES)
-
-
 def _pack_and_validate(run, pack_options):
     """Pack the charts (splitting the largest where that packs denser, with the guarantee on), then
     validate the packed atlas once (the report's verdict)."""
@@ -432,7 +423,7 @@ def _pack_and_validate(run, pack_options):
         from uvbake.atlas.packsplit import split_for_packing
 
         def trial(uvs, Fs):                            # judging a split: the fast rectangle packer
-            return pack_charts(uvs, Fs, **(pack_options | {"method": maxrects}))
+            return pack_charts(uvs, Fs, **(pack_options | {"method": "maxrects"}))
 
         # the rectangle packer places at a scale of its own: with a fixed texel density, trials are full packings
         fast = trial if pack_options.get("texel_density") is None else None
