@@ -44,7 +44,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "bench"))
 
-from pack_charts import CACHE, chart_sets  # noqa: E402
+from pack_charts import CACHE, chart_sets, set_key  # noqa: E402
 
 from uvbake.atlas.distance import min_chart_distance  # noqa: E402
 from uvbake.atlas.pack import pack_charts  # noqa: E402
@@ -214,7 +214,7 @@ def main(argv=None):
         if not args.no_xatlas:
             cells["xatlas"] = run_xatlas(uvs, faces, N, g)
         if blender:
-            key = f"blender__{name.replace(':', '__')}__{N}_{g}.npz"
+            key = f"blender__{name.replace(':', '__')}__{N}_{g}__{set_key(uvs, faces)}.npz"
             cells["blender"] = run_blender(uvs, faces, N, g, args.bpy_python, cache=CACHE / key)
 
         def fmt(c):

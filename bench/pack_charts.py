@@ -91,6 +91,27 @@ def _load(path):
     return [z[f"uv{i}"] for i in range(n)], [z[f"f{i}"] for i in range(n)], info
 
 
+def _code_key():
+    """The first 12 hex digits of a SHA-256 over uvbake's Python sources (paths and bytes)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for f in sorted((REPO / "uvbake").rglob("*.py")):
+        h.update(str(f.relative_to(REPO)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def set_key(uvs, faces):
+    """The first 12 hex digits of a SHA-256 over a chart set's arrays (for caches of its packings)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for a in [*uvs, *faces]:
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()[:12]
+
+
 def chart_sets(names=None, log=sys.stderr):
     """{name: (uvs, faces, info)}; computed once and cached."""
     CACHE.mkdir(parents=True, exist_ok=True)
@@ -102,7 +123,9 @@ def chart_sets(names=None, log=sys.stderr):
     for name, make in makers.items():
         if names and not any(s in name for s in names):
             continue
-        f = CACHE / (name.replace(":", "__") + ".npz")
+        # uvbake's own sets depend on its code: keyed by a hash of its sources, so a change rebuilds them
+        tag = f"__{_code_key()}" if name.startswith("uvbake:") else ""
+        f = CACHE / (name.replace(":", "__") + tag + ".npz")
         if not f.exists():
             print(f"# making {name}", file=log, flush=True)
             try:
