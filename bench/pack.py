@@ -20,7 +20,7 @@ twisted ribbon (one chart). Packers, each on the same charts with the same gutte
 - ``blender``: ``bpy.ops.uv.pack_islands(shape_method='CONCAVE', rotate=True, margin_method='FRACTION',
   margin=gutter / 2048)`` (Blender's margin is kept around every island, so two islands end up two
   margins apart); run in the bpy venv as a subprocess, time of the operator call only; its result is
-  cached in bench/.cache/pack/ (Blender's packing does not change between runs of this benchmark).
+  cached in bench/.cache/pack/ under a hash of the chart set (a set that changes is packed again).
 
 Efficiency = sum of |triangle areas| in texels / atlas texels. Every result's exact minimum distance
 between charts is measured (``min gap``, texels); a packing whose gap is under the gutter is flagged.

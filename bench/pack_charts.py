@@ -1,4 +1,5 @@
-"""Chart sets for bench/pack.py, cached in bench/.cache/pack/ (rebuilt when absent).
+"""Chart sets for bench/pack.py, cached in bench/.cache/pack/ (rebuilt when absent; uvbake's own sets
+under a hash of uvbake's sources, so they follow the code).
 
 - ``uvbake:<mesh>``: the final charts of ``uvbake.unwrap`` (default options) on every mesh in
   ../shared/meshes and sample_scenes/, with the whole command's time (to relate packing time to it);
