@@ -333,7 +333,7 @@ def _report(run, corner_uv, packed, verdict):
     texels = texel_summary(run.V, run.F, corner_uv)
     per_chart = [chart_distortion(c.V, c.F, r.uv) for c, r in zip(charts, results)]   # once per chart
     shown = ("texture_size_px", "gutter_px", "bake", "auto_cut", "repair", "weld", "guarantee", "max_stretch",
-             "max_charts", "texel_density", "mip_levels")
+             "max_charts", "texel_density", "mip_levels", "pack_splits")
     report = {
         "input": run.source_name,
         "vertices": int(len(run.V)),
