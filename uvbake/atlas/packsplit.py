@@ -76,7 +76,10 @@ def _rounds(charts, results, cur, trial_pack, max_charts):
     Returns (charts, results, their trial layout, records)."""
     records: list[dict] = []
     best = (charts, results, cur, 0)
+    from uvbake.cancel import check_cancelled
+
     for _ in range(MAX_ROUNDS):                          # rounds: one split each
+        check_cancelled()                                # Ctrl-C / SIGTERM: stop between rounds
         i = _largest(charts, results)
         cut = None if i is None else split_straight(charts[i], results[i])
         if cut is None:
