@@ -110,6 +110,15 @@ def starved_or_flipped(chart: Chart, uv: ArrayLike, max_stretch: float) -> np.nd
     return np.flatnonzero(bad)
 
 
+def map_energy(A: np.ndarray, alpha: float) -> float:
+    """The report's energy of a map from its per-triangle Jacobians A (m,2,2): the sum over triangles
+    of alpha (det A - 1)^2 + (1 - alpha) ((A11 - A22)^2 + (A12 + A21)^2), unweighted (so the pieces
+    of a chart add up to the chart)."""
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+    return float(np.sum(alpha * (det - 1.0) ** 2 + (1.0 - alpha) * ((A[:, 0, 0] - A[:, 1, 1]) ** 2
+                                                                   + (A[:, 0, 1] + A[:, 1, 0]) ** 2)))
+
+
 def equalise_density(chart: Chart, result: ParamResult) -> ParamResult:
     """Scale the result's map uniformly so its UV area equals the chart's 3D area, in place (one texel
     density for all charts: a triangle's texel share in the packed atlas is then its area factor in
@@ -123,11 +132,7 @@ def equalise_density(chart: Chart, result: ParamResult) -> ParamResult:
     uv_area = abs(float(np.dot(area, det)))
     k = float(np.sqrt(area.sum() / uv_area)) if uv_area > 0 and area.sum() > 0 else 1.0
     result.uv = result.uv * k
-    A = A * k
-    det = det * k * k
-    al = result.alpha
-    result.energy = float(np.sum(al * (det - 1.0) ** 2 + (1.0 - al) * ((A[:, 0, 0] - A[:, 1, 1]) ** 2
-                                                                       + (A[:, 0, 1] + A[:, 1, 0]) ** 2)))
+    result.energy = map_energy(A * k, result.alpha)
     result.extra = dict(result.extra or {}) | {"density_scale": k}
     return result
 

@@ -20,7 +20,9 @@ from typing import Any
 
 import numpy as np
 
+from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.result import ParamResult
+from uvbake.mesh.arrays import signed_areas
 from uvbake.mesh.charts import Chart
 
 #: Split rounds at most (each cuts one chart in two or three and makes one trial layout).
@@ -47,8 +49,9 @@ def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
 
     Each round's split is judged by ``trial_pack`` (default ``pack``; the pipeline passes its fast
     rectangle packer); the split charts are then packed by ``pack`` too unless their boxes fill
-    enough for boxes to compete (:func:`_boxes_suffice`), and the denser of that and the last trial layout is kept when it beats
-    the first layout by MIN_GAIN (else the splits are dropped): at most two calls of ``pack``."""
+    enough for boxes to compete (:func:`_boxes_suffice`), and the denser of that and the last trial
+    layout is kept when it beats the first layout by MIN_GAIN (else the splits are dropped): at most
+    two calls of ``pack``."""
     trial_pack = trial_pack or pack
     charts, results = list(charts), list(results)
     packed = pack([r.uv for r in results], [c.F for c in charts])
@@ -76,8 +79,6 @@ def _rounds(charts, results, cur, trial_pack, max_charts):
     Returns (charts, results, their trial layout, records)."""
     records: list[dict] = []
     best = (charts, results, cur, 0)
-    from uvbake.cancel import check_cancelled
-
     for _ in range(MAX_ROUNDS):                          # rounds: one split each
         check_cancelled()                                # Ctrl-C / SIGTERM: stop between rounds
         i = _largest(charts, results)
@@ -110,15 +111,9 @@ def _boxes_suffice(charts, results):
 
 def _largest(charts, results):
     """The chart holding the most UV area, when it holds at least MIN_SHARE of the atlas's."""
-    area = np.array([_uv_area(np.asarray(r.uv), c.F).sum() for c, r in zip(charts, results)])
+    area = np.array([np.abs(signed_areas(r.uv, c.F)).sum() for c, r in zip(charts, results)])
     i = int(np.argmax(area))
     return i if area[i] >= MIN_SHARE * area.sum() and len(charts[i].F) >= 8 else None
-
-
-def _uv_area(uv, F):
-    """|UV area| of every triangle."""
-    e1, e2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
-    return np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) * 0.5
 
 
 def split_straight(chart: Chart, result: ParamResult) -> tuple[list[Chart], list[ParamResult], float] | None:
@@ -134,7 +129,7 @@ def split_straight(chart: Chart, result: ParamResult) -> tuple[list[Chart], list
     theta = min_area_rect(uv)[0]
     c = uv[F].mean(axis=1)
     x = np.cos(theta) * c[:, 0] - np.sin(theta) * c[:, 1]      # along the rectangle's long side
-    a = _uv_area(uv, F)
+    a = np.abs(signed_areas(uv, F))
     order = np.argsort(x, kind="stable")
     cum = np.cumsum(a[order]) / a.sum()
     k = np.clip(np.searchsorted(cum, POSITIONS), 1, m - 1)
@@ -156,16 +151,14 @@ def split_straight(chart: Chart, result: ParamResult) -> tuple[list[Chart], list
 def _piece_result(result: ParamResult, chart: Chart, part: Chart) -> ParamResult:
     """The parent's result restricted to ``part``: its map, its triangles' share of the energy and of
     the flips; the solver's figures (iterations, history, certificate) stay the parent's."""
-    from uvbake.atlas.guarantee import _local_vertices
+    from uvbake.atlas.guarantee import _local_vertices, map_energy
     from uvbake.flatten.energy import jacobians, triangle_frames
 
     uv = np.asarray(result.uv)[_local_vertices(chart, part)]
     _, Q, _ = triangle_frames(part.V, part.F)
     A = jacobians(Q, part.F, uv)
     det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
-    al = result.alpha
-    energy = float(np.sum(al * (det - 1.0) ** 2 + (1.0 - al) * ((A[:, 0, 0] - A[:, 1, 1]) ** 2
-                                                                + (A[:, 0, 1] + A[:, 1, 0]) ** 2)))
-    return dataclasses.replace(result, uv=uv, energy=energy, n_flipped=int(np.count_nonzero(det <= 0)),
+    return dataclasses.replace(result, uv=uv, energy=map_energy(A, result.alpha),
+                               n_flipped=int(np.count_nonzero(det <= 0)),
                                extra=dict(result.extra or {}) | {"split_for_packing_from": chart.name},
                                flip_free_uv=None)

@@ -110,6 +110,7 @@ class DistortionEnergy:
         self.b = np.ascontiguousarray(Q[:, :, 1])
         m = len(self.F)
         self.w = np.ones(m) if weights is None else np.asarray(weights, dtype=np.float64)
+        self.min_det = np.inf            # the least det A of the last value-and-gradient evaluation
         # global unknown of each per-triangle local unknown [u1 u2 u3 v1 v2 v3]
         self.dof = np.concatenate([2 * self.F, 2 * self.F + 1], axis=1)      # (m,6)
         N = 2 * self.n
@@ -225,6 +226,7 @@ class DistortionEnergy:
     def _local(self, uv, hessian):
         A11, A12, A21, A22 = self._terms(uv)
         det = A11 * A22 - A12 * A21
+        self.min_det = float(det.min()) if len(det) else np.inf
         r1 = A11 - A22
         r2 = A12 + A21
         al, w = self.alpha, self.w

@@ -113,7 +113,7 @@ class _State:
         self.uv = self.energy.to_uv(x, self.uv_fixed)
         self.f, self.g, _ = self.energy.evaluate(self.uv, out=self.H)
         self.n_eval += 1
-        if self.step_limit is None and np.all(self.energy.determinants(self.uv) > 0):
+        if self.step_limit is None and self.energy.min_det > 0:   # det A of this evaluation
             self.flip_free = x
         self.gnorm = float(np.linalg.norm(self.g))
         self.factored = False                      # M must be factored at the new iterate
