@@ -66,6 +66,37 @@ def test_distortion_budget_cuts_a_long_protrusion_a_conformal_map_shrinks():
     assert paper.report["charts_final"] == 1 and paper.report["min_texel_share"] < 1e-3
 
 
+def test_cut_parts_inherit_the_parent_map_only_within_the_budget():
+    from uvbake.atlas.charting import _frames, _inherited_map, sub_charts
+    from uvbake.mesh.charts import Chart
+
+    V, F = plane(9, 7, jitter=0.0)
+    chart = Chart(V, F, np.arange(len(V)), np.arange(len(F)), -1, "plane")
+    uv = V[:, :2].copy()                             # a similarity of the tilted plane: every factor is 1
+    lab = (V[F][:, :, 0].mean(axis=1) > 1.0).astype(np.int64)
+    parts = sub_charts(chart, lab)
+    assert len(parts) == 2
+    bound = np.log(4.0)
+    for p in parts:
+        got = _inherited_map(chart, uv, p, _frames(p.V, p.F)[1], bound)
+        assert got is not None
+        assert np.allclose(got, p.V[:, :2], atol=1e-12)      # the parent's map, vertex for vertex
+    # compress x beyond 1.5 (a grid line) tenfold: part 1's triangles keep factor 1 or 0.1 against its
+    # mean ~0.55, so 0.18: over a budget of 4, within one of 10; no triangle flips (x stays monotone)
+    squashed = uv.copy()
+    x = V[:, 0]
+    squashed[:, 0] = np.where(x > 1.5, 1.5 + 0.1 * (x - 1.5), x)
+    area = _frames(parts[1].V, parts[1].F)[1]
+    assert _inherited_map(chart, squashed, parts[1], area, bound) is None
+    loose = _inherited_map(chart, squashed, parts[1], area, np.log(10.0))
+    assert loose is not None and 0.1 <= area_factors(parts[1], loose).min() < 0.25
+    assert _inherited_map(chart, squashed, parts[0], _frames(parts[0].V, parts[0].F)[1], bound) is not None
+    # a flipped triangle is never inherited, whatever the budget
+    flipped = uv.copy()
+    flipped[F[parts[1].face_index[0]][0]] += 10.0
+    assert _inherited_map(chart, flipped, parts[1], area, np.log(1e9)) is None
+
+
 def test_texel_share_definition():
     V, F = plane(5, 4, jitter=0.0)
     uv = V[:, :2].copy()

@@ -132,13 +132,8 @@ def _fiedler(m, fi, fj, w, mass):
         L = _laplacian(m, fi, fj, w / w.mean())
         M = sp.diags(mass / mass.mean()).tocsc()
         try:
-            solve = _factor(L + 1e-3 * M)
-
-            def prec(X):
-                X = np.asarray(X)
-                return solve(X) if X.ndim == 1 else np.column_stack([solve(x) for x in X.T])
-
-            P = LinearOperator((m, m), matvec=prec, matmat=prec, dtype=np.float64)
+            solve = _factor(L + 1e-3 * M)              # both factors solve a whole block at once
+            P = LinearOperator((m, m), matvec=solve, matmat=solve, dtype=np.float64)
             X0 = np.random.default_rng(0).standard_normal((m, 2))
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
