@@ -49,6 +49,51 @@ def test_bisect_cuts_a_long_strip_across_its_width():
     assert min(np.bincount(lab)) >= 0.1 * len(F)
 
 
+def _folded_strip(fold_at, up):
+    """A 6 x 1 strip (grid 61 x 7, normals +z) folded by 90 degrees across its length at x = fold_at:
+    the part beyond the fold turns up (a valley on the normals' side) or down (a ridge)."""
+    st, F = grid(61, 7)
+    x, y = 6.0 * st[:, 0], st[:, 1]
+    beyond = x > fold_at
+    z = np.where(beyond, (x - fold_at) * (1.0 if up else -1.0), 0.0)
+    return np.column_stack([np.where(beyond, fold_at, x), y, z]), F
+
+
+@pytest.mark.parametrize("up", [True, False])
+def test_seam_costs_discount_creases_and_valleys_most(up):
+    from uvbake.mesh.cut import RIDGE_COST, VALLEY_COST, _dual_edges, seam_costs
+
+    V, F = _folded_strip(2.4, up)
+    fi, fj, ea, eb, _, _ = _dual_edges(F, len(V))
+    length = np.linalg.norm(V[ea] - V[eb], axis=1)
+    cost = seam_costs(V, F, fi, fj, ea, eb)
+    on_fold = np.isclose(V[ea, 0], 2.4, atol=1e-12) & np.isclose(V[eb, 0], 2.4, atol=1e-12) & \
+        np.isclose(V[ea, 2], 0.0, atol=1e-12) & np.isclose(V[eb, 2], 0.0, atol=1e-12)
+    assert on_fold.sum() == 6                                   # the fold's 6 edges
+    assert np.allclose(cost[on_fold], (VALLEY_COST if up else RIDGE_COST) * length[on_fold], rtol=1e-12)
+    assert np.allclose(cost[~on_fold], length[~on_fold], rtol=1e-12)   # flat elsewhere: the length
+
+
+@pytest.mark.parametrize("up", [True, False])
+def test_bisect_cuts_along_a_crease_rather_than_across_the_middle(up):
+    # flat, the strip is cut across its middle (x = 3); folded at x = 2.4, the cut moves to the fold
+    def cut_position(V, F, lab):
+        along = V[:, 0] + np.abs(V[:, 2])                        # arclength along the strip
+        c = along[F].mean(axis=1)
+        return c[lab == 0].max(), c[lab == 1].min()
+
+    st, F = grid(61, 7)
+    flat = np.column_stack([6.0 * st[:, 0], st[:, 1], np.zeros(len(st))])
+    lo, hi = sorted(cut_position(flat, F, bisect(flat, F)))
+    assert 2.8 < lo <= hi < 3.2                                 # the middle, within two grid columns
+    V, F = _folded_strip(2.4, up)
+    lab = bisect(V, F)
+    _parts_valid(V, F, lab, 2)
+    lo, hi = sorted(cut_position(V, F, lab))
+    assert 2.25 < lo <= hi < 2.55                               # at the fold, within 1.5 grid steps (0.1)
+    assert seam_length(V, F, lab) < 1.1
+
+
 def test_bisect_is_deterministic_and_rejects_disconnected_input():
     V, F = bumpy_disk(12)
     assert np.array_equal(bisect(V, F), bisect(V, F))
@@ -135,3 +180,24 @@ def test_split_where_two_bad_clusters_and_fallbacks():
         _parts_valid(V, F, lab, 2)
     with pytest.raises(InputError, match="outside"):
         split_where(V, F, [len(F)])
+
+
+@pytest.mark.parametrize("up", [True, False])
+def test_seam_placement_measures_the_share_of_seams_on_creases_and_valleys(up):
+    from uvbake.analysis.metrics import seam_placement
+    from uvbake.mesh.cut import RIDGE_COST, VALLEY_COST
+
+    V, F = _folded_strip(2.4, up)
+    along = V[:, 0] + np.abs(V[:, 2])
+    uv = np.column_stack([along, V[:, 1]])[F]                     # the strip unfolded, per corner
+    beyond = along[F].mean(axis=1) > 2.4
+    uv[beyond] += [0.5, 0.0]                                    # cut at the fold: the far side moves
+    s = seam_placement(V, F, uv)
+    assert np.isclose(s["seam_length"], 1.0, rtol=1e-12)
+    assert s["on_creases"] == pytest.approx(1.0, abs=1e-12)
+    assert s["on_valleys"] == pytest.approx(1.0 if up else 0.0, abs=1e-12)
+    assert s["cost_per_length"] == pytest.approx(VALLEY_COST if up else RIDGE_COST, rel=1e-12)
+    uv2 = np.column_stack([along, V[:, 1]])[F]
+    uv2[along[F].mean(axis=1) > 3.0] += [0.5, 0.0]              # cut across the flat part instead
+    s2 = seam_placement(V, F, uv2)
+    assert s2["on_creases"] == 0.0 and s2["cost_per_length"] == pytest.approx(1.0, rel=1e-12)

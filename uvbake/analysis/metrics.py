@@ -212,6 +212,32 @@ def uv_seam_length(V: ArrayLike, F: np.ndarray, uv: ArrayLike) -> float:
     return float(np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1).sum())
 
 
+def seam_placement(V: ArrayLike, F: np.ndarray, uv: ArrayLike, *, crease_deg: float = 30.0) -> dict[str, float]:
+    """Where the seams lie: their 3D length, the share of it on creases (triangle normals at least
+    ``crease_deg`` apart) and on valleys (concave edges), and their cost
+    (:func:`uvbake.mesh.cut.seam_costs`: length discounted on creases, most on valleys) over length.
+    ``F`` consistently oriented, as uvbake's repair leaves it."""
+    from uvbake.mesh.cut import seam_costs
+
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    cut, f0, f1, verts = cut_edges(F, uv)
+    f0, f1, e = f0[cut], f1[cut], verts[cut]
+    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    total = float(length.sum())
+    if total <= 0:
+        return dict(seam_length=0.0, on_creases=0.0, on_valleys=0.0, cost_per_length=0.0)
+    X = V[F]
+    nrm = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    crease = np.einsum("ij,ij->i", nrm[f0], nrm[f1]) <= np.cos(np.radians(crease_deg))
+    far = F[f1].sum(axis=1) - e[:, 0] - e[:, 1]
+    valley = np.einsum("ij,ij->i", nrm[f0], V[far] - V[e[:, 0]]) > 0
+    cost = seam_costs(V, F, f0, f1, e[:, 0], e[:, 1])
+    return dict(seam_length=total, on_creases=float(length[crease].sum() / total),
+                on_valleys=float(length[crease & valley].sum() / total), cost_per_length=float(cost.sum() / total))
+
+
 def chart_ids(F: np.ndarray, uv: ArrayLike) -> np.ndarray:
     """Chart of every face: components of faces joined through uncut interior edges."""
     F = np.asarray(F, dtype=np.int64)

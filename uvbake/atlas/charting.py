@@ -128,7 +128,7 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     (chart, seam length), or None when no tip is inside the chart."""
     from scipy.sparse.csgraph import dijkstra
 
-    from uvbake.mesh.cut import _corner_fans
+    from uvbake.mesh.cut import _corner_fans, seam_costs
     from uvbake.mesh.topology import boundary_edges
 
     V, F = chart.V, chart.F
@@ -139,7 +139,8 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
         return None
     fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
     length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
-    g = sp.coo_matrix((length, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    cost = np.maximum(seam_costs(V, F, fi, fj, e[:, 0], e[:, 1]), 1e-12 * max(length.max(), 1e-300))
+    g = sp.coo_matrix((cost, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
     dist, pred, src = dijkstra(g, directed=False, indices=bnd, min_only=True, return_predecessors=True)
     tips = tips[np.isfinite(dist[tips])]
     if len(tips) == 0:
@@ -362,7 +363,7 @@ def _cut_by_factor(chart, logf, bound, *, area=None):
 
     The level is searched on the side that breaks the budget, between a quarter and the whole of the
     budget away from the area-weighted median level; every piece on either side becomes a chart."""
-    from uvbake.mesh.cut import _dual_edges, split_where
+    from uvbake.mesh.cut import _dual_edges, seam_costs, split_where
 
     V, F = chart.V, chart.F
     m, n = len(F), len(V)
@@ -373,7 +374,7 @@ def _cut_by_factor(chart, logf, bound, *, area=None):
     o = np.argsort(field, kind="stable")
     ref = field[o][np.searchsorted(np.cumsum(area[o]), 0.5 * area.sum())]
     fi, fj, ea, eb, _, _ = _dual_edges(F, n)
-    w = np.linalg.norm(V[ea] - V[eb], axis=1)
+    w = seam_costs(V, F, fi, fj, ea, eb)
     if ref - field.min() >= field.max() - ref:
         # a folded map: no level below the budget (log factor -bound against the mean), so every
         # region starving against the mean is cut off in this one round, not one region per re-solve

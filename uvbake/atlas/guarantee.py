@@ -167,12 +167,13 @@ def separating_split(chart: Chart, uv: ArrayLike, pairs: ArrayLike) -> tuple[lis
     from scipy.sparse.csgraph import dijkstra
 
     from uvbake.atlas.charting import sub_charts
-    from uvbake.mesh.cut import _dual_edges, _factor, _laplacian, _make_valid, _sweep, seam_length, split_where
+    from uvbake.mesh.cut import (_dual_edges, _factor, _laplacian, _make_valid, _sweep, seam_costs, seam_length,
+                                  split_where)
 
     V, F = chart.V, chart.F
     m, n = len(F), len(V)
     fi, fj, ea, eb, hi, hj = _dual_edges(F, n)
-    w = np.maximum(np.linalg.norm(V[ea] - V[eb], axis=1), 1e-12)
+    w = np.maximum(seam_costs(V, F, fi, fj, ea, eb), 1e-12)
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     G = sp.coo_matrix((w, (fi, fj)), shape=(m, m)).tocsr()
     d = dijkstra(G, directed=False, indices=int(pairs[0, 0]))

@@ -122,7 +122,7 @@ def split_straight(chart: Chart, result: ParamResult) -> tuple[list[Chart], list
     parent's map restricted to it; None when no cut gives two pieces."""
     from uvbake.atlas.charting import SLIVER_SHARE, _absorb_slivers, sub_charts
     from uvbake.atlas.maxrects import min_area_rect
-    from uvbake.mesh.cut import _dual_edges
+    from uvbake.mesh.cut import _dual_edges, seam_costs
 
     F, uv = chart.F, np.asarray(result.uv)
     m, n = len(F), len(chart.V)
@@ -135,8 +135,9 @@ def split_straight(chart: Chart, result: ParamResult) -> tuple[list[Chart], list
     k = np.clip(np.searchsorted(cum, POSITIONS), 1, m - 1)
     side = x[:, None] > x[order][k][None, :]                   # (m, positions): the far side of each cut
     fi, fj, ea, eb, _, _ = _dual_edges(F, n)
+    cost = seam_costs(chart.V, F, fi, fj, ea, eb)
     w = np.linalg.norm(chart.V[ea] - chart.V[eb], axis=1)
-    seams = ((side[fi] != side[fj]) * w[:, None]).sum(axis=0)
+    seams = ((side[fi] != side[fj]) * cost[:, None]).sum(axis=0)
     best = int(np.argmin(seams * (1.0 + IMBALANCE * np.abs(POSITIONS - 0.5))))
     lab = _absorb_slivers(F, n, side[:, best].astype(np.int64), a, SLIVER_SHARE)
     if len(np.unique(lab)) < 2:

@@ -73,6 +73,31 @@ def _edge_lengths(V, ea, eb):
     return np.linalg.norm(V[ea] - V[eb], axis=1)
 
 
+#: Dihedral angles (between the two triangles' normals) from which an edge starts to be a crease, and
+#: is a full one: below the first, a smooth surface's facets, cuts stay shortest in length.
+CREASE_START, CREASE_ANGLE = np.radians(20.0), np.radians(60.0)
+#: Cost per unit length of cutting a full crease: a valley (concave: shaded and occluded, the seam is
+#: hidden) and a ridge (convex: the shading changes there anyway). A flat edge costs its length.
+VALLEY_COST, RIDGE_COST = 0.25, 0.5
+
+
+def seam_costs(V: np.ndarray, F: np.ndarray, fi: np.ndarray, fj: np.ndarray, ea: np.ndarray,
+               eb: np.ndarray) -> np.ndarray:
+    """Cost of a seam along each shared edge (triangles fi, fj; vertices ea, eb): its 3D length,
+    discounted on creases and most on valleys, so that every shortest cut prefers the edges where a
+    texture seam shows least. Triangles must be consistently oriented (outward normals on a closed
+    surface: a valley is an edge where the neighbour rises above the triangle's plane)."""
+    length = _edge_lengths(V, ea, eb)
+    X = V[F]
+    nrm = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    cos = np.clip(np.einsum("ij,ij->i", nrm[fi], nrm[fj]), -1.0, 1.0)
+    sharp = np.clip((np.arccos(cos) - CREASE_START) / (CREASE_ANGLE - CREASE_START), 0.0, 1.0)
+    far = F[fj].sum(axis=1) - ea - eb                   # fj's corner off the shared edge
+    valley = np.einsum("ij,ij->i", nrm[fi], V[far] - V[ea]) > 0
+    return length * (1.0 - (1.0 - np.where(valley, VALLEY_COST, RIDGE_COST)) * sharp)
+
+
 def seam_length(V: ArrayLike, F: ArrayLike, labels: ArrayLike) -> float:
     """Total 3D length of the mesh edges whose two triangles carry different labels.
 
@@ -271,7 +296,7 @@ def _prepare(V: ArrayLike, F: ArrayLike, where: str) -> tuple[np.ndarray, ...]:
         other = np.flatnonzero(comp != comp[0])
         raise InputError(f"{where}: the chart has {nc} edge-connected pieces (triangles {_list(other)} are "
                          "not connected to triangle 0); split it with uvbake.split_charts first")
-    w = _edge_lengths(V, ea, eb)
+    w = seam_costs(V, F, fi, fj, ea, eb)
     w = np.maximum(w, 1e-12 * max(w.max(initial=0.0), 1e-300))
     return V, F, fi, fj, w, hi, hj
 
