@@ -167,8 +167,16 @@ def separating_split(chart: Chart, uv: ArrayLike, pairs: ArrayLike) -> tuple[lis
     from scipy.sparse.csgraph import dijkstra
 
     from uvbake.atlas.charting import sub_charts
-    from uvbake.mesh.cut import (_dual_edges, _factor, _laplacian, _make_valid, _sweep, seam_costs, seam_length,
-                                  split_where)
+    from uvbake.mesh.cut import (
+        _dual_edges,
+        _factor,
+        _laplacian,
+        _make_valid,
+        _sweep,
+        seam_costs,
+        seam_length,
+        split_where,
+    )
 
     V, F = chart.V, chart.F
     m, n = len(F), len(V)
