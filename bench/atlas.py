@@ -4,7 +4,8 @@
 
 In-process ``uvbake.unwrap(mesh, alpha=a)`` without a bake against ``xatlas.parametrize`` (plain
 generate, its defaults), process CPU seconds (time.process_time: all threads of this process).
-Flips and overlapping pairs come from ``uvbake.validate``; texel shares from ``uvbake.analysis.metrics``.
+Flips and overlapping pairs come from ``uvbake.validate``; texel shares and where the seams lie (3D length,
+share on creases of 30 degrees or more) from ``uvbake.analysis.metrics``.
 Every mesh in ../shared/meshes and sample_scenes by default.
 """
 
@@ -35,15 +36,18 @@ def _xatlas(V, F):
     vmapping, indices, uvs = atlas[0]
     cpu = time.process_time() - t
     Fx = indices.astype(np.int64)
-    return dict(cpu=cpu, charts=int(atlas.chart_count), **_measure(V[vmapping], Fx, uvs[Fx]))
+    # the input's vertex ids (xatlas splits vertices along its seams): seams are edges whose UVs differ
+    return dict(cpu=cpu, charts=int(atlas.chart_count), **_measure(V, vmapping[Fx].astype(np.int64), uvs[Fx]))
 
 
 def _measure(V, F, corner_uv, chart_ids=None):
-    from uvbake.analysis.metrics import texel_summary
+    from uvbake.analysis.metrics import seam_placement, texel_summary
     from uvbake.validate import validate
 
     rep = validate(corner_uv, F, chart_ids=chart_ids, resolution_px=1024)
-    return dict(flips=int(rep.n_flipped), overlaps=int(rep.n_overlaps), **texel_summary(V, F, corner_uv))
+    seams = seam_placement(V, F, corner_uv)
+    return dict(flips=int(rep.n_flipped), overlaps=int(rep.n_overlaps), seam=seams["seam_length"],
+                on_creases=seams["on_creases"], **texel_summary(V, F, corner_uv))
 
 
 def main(argv=None):
@@ -59,8 +63,9 @@ def main(argv=None):
     uvbake.unwrap(str(ROOT / "sample_scenes" / "sphere_cap.ply"), alpha=0.5)   # imports out of the timings
 
     print("| mesh | alpha | uvbake CPU s | xatlas CPU s | charts (xatlas) | flips | overlaps | "
-          "min share | area < 1/4 | area < 1/16 | xatlas min share | xatlas < 1/4 |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "min share | area < 1/4 | area < 1/16 | xatlas min share | xatlas < 1/4 | seam (xatlas) | "
+          "on creases (xatlas) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for path in [Path(p) for p in args.meshes] if args.meshes else _meshes():
         mesh = load_mesh(str(path))
         xa = None if args.no_xatlas else _xatlas(mesh.V, mesh.F)
@@ -69,11 +74,13 @@ def main(argv=None):
             res = uvbake.unwrap(str(path), alpha=a, max_stretch=args.max_stretch)
             cpu = time.process_time() - t
             m = _measure(res.V, res.F, res.corner_uv, res.chart_ids)
-            x = xa or dict(cpu=float("nan"), charts="-", min_texel_share=float("nan"), area_below_quarter=float("nan"))
+            x = xa or dict(cpu=float("nan"), charts="-", min_texel_share=float("nan"), area_below_quarter=float("nan"),
+                           seam=float("nan"), on_creases=float("nan"))
             print(f"| {path.stem} | {a} | {cpu:.2f} | {x['cpu']:.2f} | {res.report['charts_final']} ({x['charts']}) | "
                   f"{m['flips']} | {m['overlaps']} | {m['min_texel_share']:.3f} | {100 * m['area_below_quarter']:.2f}% | "
                   f"{100 * m['area_below_sixteenth']:.2f}% | {x['min_texel_share']:.3f} | "
-                  f"{100 * x['area_below_quarter']:.2f}% |", flush=True)
+                  f"{100 * x['area_below_quarter']:.2f}% | {m['seam']:.3g} ({x['seam']:.3g}) | "
+                  f"{100 * m['on_creases']:.0f}% ({100 * x['on_creases']:.0f}%) |", flush=True)
 
 
 if __name__ == "__main__":
