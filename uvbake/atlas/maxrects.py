@@ -155,79 +155,74 @@ def _maxrects(sizes, order, rule, allow_turn=True):
     """Pack rectangles ``sizes (n,2)`` in the unit square in ``order`` with placement ``rule``.
 
     Returns ``(pos (n,2), turned (n,) bool)`` or ``None`` when a rectangle does not fit. A rectangle
-    may be turned by 90 degrees. Free space is kept as maximal rectangles (x0, y0, x1, y1).
+    may be turned by 90 degrees. Free space is kept as maximal rectangles (x0, y0, x1, y1). Both
+    orientations of a box are scored together (ties: unturned first, then the lower free rectangle).
     """
     n = len(sizes)
     free = np.array([[0.0, 0.0, 1.0, 1.0]])
-    placed = np.empty((0, 4))
+    placed = np.empty((n, 4))
     pos = np.zeros((n, 2))
     turned = np.zeros(n, dtype=bool)
-    for i in order:
-        best = None
+    for k, i in enumerate(order):
+        w0, h0 = float(sizes[i][0]), float(sizes[i][1])
+        turns = 2 if allow_turn and w0 != h0 else 1
+        # candidates: (free rectangle, orientation) pairs, unturned ones first
         fw = free[:, 2] - free[:, 0]
         fh = free[:, 3] - free[:, 1]
-        for t, (w, h) in enumerate((sizes[i], sizes[i][::-1])):
-            if t == 1 and (not allow_turn or sizes[i][0] == sizes[i][1]):
-                break
-            ok = (fw >= w) & (fh >= h)
-            if not ok.any():
-                continue
-            idx = np.flatnonzero(ok)
-            lw, lh = fw[idx] - w, fh[idx] - h
-            if rule == "bssf":
-                s1, s2 = np.minimum(lw, lh), np.maximum(lw, lh)
-            elif rule == "blsf":
-                s1, s2 = np.maximum(lw, lh), np.minimum(lw, lh)
-            elif rule == "baf":
-                s1, s2 = fw[idx] * fh[idx] - w * h, np.minimum(lw, lh)
-            elif rule == "bl":
-                s1, s2 = free[idx, 1] + h, free[idx, 0]
-            else:  # contact point: maximise the perimeter touching the border and placed boxes
-                x0, y0 = free[idx, 0], free[idx, 1]
-                x1, y1 = x0 + w, y0 + h
-                contact = ((x0 == 0) + (x1 >= 1)) * h + ((y0 == 0) + (y1 >= 1)) * w
-                if len(placed):
-                    px0, py0, px1, py1 = (placed[:, j][None, :] for j in range(4))
-                    ov_y = np.clip(np.minimum(y1[:, None], py1) - np.maximum(y0[:, None], py0), 0, None)
-                    ov_x = np.clip(np.minimum(x1[:, None], px1) - np.maximum(x0[:, None], px0), 0, None)
-                    touch_x = (px1 == x0[:, None]) | (px0 == x1[:, None])
-                    touch_y = (py1 == y0[:, None]) | (py0 == y1[:, None])
-                    contact = contact + (touch_x * ov_y).sum(1) + (touch_y * ov_x).sum(1)
-                s1, s2 = -contact, free[idx, 1]
-            j = np.lexsort((s2, s1))[0]
-            cand = (s1[j], s2[j], idx[j], t, w, h)
-            if best is None or (cand[0], cand[1]) < (best[0], best[1]):
-                best = cand
-        if best is None:
+        W = np.array([w0, h0][:turns])
+        H = np.array([h0, w0][:turns])
+        ok = (fw[None, :] >= W[:, None]) & (fh[None, :] >= H[:, None])
+        t_idx, idx = np.nonzero(ok)                 # row-major: orientation, then free rectangle
+        if not len(idx):
             return None
-        _, _, f, t, w, h = best
+        w, h = W[t_idx], H[t_idx]
+        lw, lh = fw[idx] - w, fh[idx] - h
+        if rule == "bssf":
+            s1, s2 = np.minimum(lw, lh), np.maximum(lw, lh)
+        elif rule == "blsf":
+            s1, s2 = np.maximum(lw, lh), np.minimum(lw, lh)
+        elif rule == "baf":
+            s1, s2 = fw[idx] * fh[idx] - w * h, np.minimum(lw, lh)
+        elif rule == "bl":
+            s1, s2 = free[idx, 1] + h, free[idx, 0]
+        else:  # contact point: maximise the perimeter touching the border and placed boxes
+            x0, y0 = free[idx, 0], free[idx, 1]
+            x1, y1 = x0 + w, y0 + h
+            contact = ((x0 == 0) + (x1 >= 1)) * h + ((y0 == 0) + (y1 >= 1)) * w
+            if k:
+                px0, py0, px1, py1 = (placed[:k, j][None, :] for j in range(4))
+                ov_y = np.clip(np.minimum(y1[:, None], py1) - np.maximum(y0[:, None], py0), 0, None)
+                ov_x = np.clip(np.minimum(x1[:, None], px1) - np.maximum(x0[:, None], px0), 0, None)
+                touch_x = (px1 == x0[:, None]) | (px0 == x1[:, None])
+                touch_y = (py1 == y0[:, None]) | (py0 == y1[:, None])
+                contact = contact + (touch_x * ov_y).sum(1) + (touch_y * ov_x).sum(1)
+            s1, s2 = -contact, free[idx, 1]
+        j = np.lexsort((s2, s1))[0]                 # stable: the first of equal scores
+        f, t = idx[j], bool(t_idx[j])
         x0, y0 = free[f, 0], free[f, 1]
-        r = np.array([x0, y0, x0 + w, y0 + h])
+        r = np.array([x0, y0, x0 + W[int(t)], y0 + H[int(t)]])
         pos[i] = (x0, y0)
-        turned[i] = bool(t)
-        placed = np.vstack([placed, r])
+        turned[i] = t
+        placed[k] = r
         # split every free rectangle the new box intersects into up to four maximal pieces
         hit = (free[:, 0] < r[2]) & (free[:, 2] > r[0]) & (free[:, 1] < r[3]) & (free[:, 3] > r[1])
-        if hit.any():
-            F = free[hit]
-            pieces = []
-            m = F[:, 0] < r[0]
-            pieces.append(np.column_stack([F[m, 0], F[m, 1], np.full(m.sum(), r[0]), F[m, 3]]))
-            m = F[:, 2] > r[2]
-            pieces.append(np.column_stack([np.full(m.sum(), r[2]), F[m, 1], F[m, 2], F[m, 3]]))
-            m = F[:, 1] < r[1]
-            pieces.append(np.column_stack([F[m, 0], F[m, 1], F[m, 2], np.full(m.sum(), r[1])]))
-            m = F[:, 3] > r[3]
-            pieces.append(np.column_stack([F[m, 0], np.full(m.sum(), r[3]), F[m, 2], F[m, 3]]))
-            free = np.vstack([free[~hit], *pieces])
-            # drop rectangles contained in another one (keep one of equal duplicates)
-            A = free
-            cont = ((A[:, None, 0] >= A[None, :, 0]) & (A[:, None, 1] >= A[None, :, 1])
-                    & (A[:, None, 2] <= A[None, :, 2]) & (A[:, None, 3] <= A[None, :, 3]))
-            np.fill_diagonal(cont, False)
-            eq = cont & cont.T
-            cont &= ~(eq & (np.arange(len(A))[:, None] < np.arange(len(A))[None, :]))
-            free = A[~cont.any(axis=1)]
+        F = free[hit]
+        m = len(F)
+        pieces = np.concatenate((F, F, F, F))       # left, right, below and above pieces, in that order
+        pieces[:m, 2] = r[0]
+        pieces[m:2 * m, 0] = r[2]
+        pieces[2 * m:3 * m, 3] = r[1]
+        pieces[3 * m:, 1] = r[3]
+        P = pieces[np.concatenate((F[:, 0] < r[0], F[:, 2] > r[2], F[:, 1] < r[1], F[:, 3] > r[3]))]
+        old = free[~hit]
+        A = np.concatenate((old, P))
+        # drop pieces inside another rectangle (of equal ones the first is kept; a piece is not tested
+        # against itself). The untouched rectangles need no test: they were maximal, and a piece lies
+        # inside the rectangle it was cut from
+        cont = (P[:, None, :2] >= A[None, :, :2]).all(axis=2) & (P[:, None, 2:] <= A[None, :, 2:]).all(axis=2)
+        first = (len(old) + np.arange(len(P)))[:, None] <= np.arange(len(A))[None, :]
+        cont &= ~((P[:, None, :] == A[None, :, :]).all(axis=2) & first)
+        free = np.concatenate((old, P[~cont.any(axis=1)]))
     return pos, turned
 
 
