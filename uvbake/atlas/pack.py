@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.atlas.maxrects import _RULES, _own_packers, _pack_boxes, min_area_rects, rotation_2d
+from uvbake.atlas.maxrects import _REL_TOL, _RULES, _own_packers, _pack_boxes, min_area_rects, rotation_2d
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import signed_areas
 
@@ -239,15 +239,27 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
     charts' min_area_rect when already known. A *placer* as :func:`pack_charts` takes one: (s,
     rotation, offset, placed UVs, measured gap in texels or None).
     """
-    pad = g / N + _EPS_PAD
     rects = min_area_rects(uvs) if rects is None else rects
+    s, payload = _box_search(len(uvs), N, g, rects, packers, rules)
+    return _boxes_placed(uvs, N, g, rects, s, payload)
+
+
+def _box_search(n, N, g, rects, packers=None, rules=_RULES, orders=None, rel_tol=_REL_TOL, start=None):
+    """place_boxes's search: the common scale and (positions, turned) of the padded boxes (maxrects's
+    _pack_boxes: ``orders`` orders of every rule, None: all; ``start``: a layout to beat)."""
     wh = np.array([[w, h] for _, w, h in rects])
     if packers is None:
-        packers = _own_packers(wh, rules=rules)
-    s, payload = _pack_boxes(wh, pad, packers)
+        packers = _own_packers(wh, rules=rules, orders=orders)
+    s, payload = _pack_boxes(wh, g / N + _EPS_PAD, packers, rel_tol, start)
     if s is None:
-        raise InputError(f"gutter_px={g} is too large for {len(uvs)} charts in a {N}-texel atlas: the gutters "
+        raise InputError(f"gutter_px={g} is too large for {n} charts in a {N}-texel atlas: the gutters "
                          f"alone do not fit; reduce gutter_px or increase texture_size_px")
+    return s, payload
+
+
+def _boxes_placed(uvs, N, g, rects, s, payload) -> Placement:
+    """Each chart rotated to its box and moved into the box's place (a _box_search layout)."""
+    pad = g / N + _EPS_PAD
     pos, turned = payload
     rotation = np.zeros(len(uvs))
     offset = np.zeros((len(uvs), 2))
@@ -263,12 +275,79 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
     return s, rotation, offset, out, None
 
 
+#: a quick box layout (BoxLayouts(quick=True)): every rule on the first order only, the scale to 1 %.
+#: On packsplit's trials of bumpy, halftunnel, sphere_cap and beetle it ranks the split rounds as the
+#: full search does (efficiencies within 0.1 point) at about half its MaxRects calls (docs/decisions/pack.md)
+_QUICK_ORDERS = 1
+_QUICK_TOL = 1e-2
+
+
+class BoxLayouts:
+    """MaxRects layouts (``method="maxrects"``) of changing sets of charts in a square atlas at a free
+    scale, for a caller that packs many sets sharing most charts (packsplit's split rounds): each
+    chart's minimum-area rectangle and area are computed once, kept by the identity of its UV and face
+    arrays (both held, so an id is never reused while kept).
+
+    ``layouts(uvs, faces, quick=True)`` is a quick layout for ranking sets (_QUICK_ORDERS, _QUICK_TOL);
+    ``layouts(uvs, faces)`` the full search of ``pack_charts(uvs, faces, method="maxrects")``, which for
+    the set last laid out quickly starts from that layout (every rule and order only has to beat it:
+    the same or a denser layout, with fewer trial packings).
+    """
+
+    def __init__(self, texture_size_px: int = 1024, gutter_px: int | None = None, mip_levels: int | None = None):
+        W, H = _check_size(texture_size_px, None)
+        if W != H:
+            raise InputError(f"texture_size_px={texture_size_px!r}: box layouts are square; pass one size, e.g. 1024")
+        self.N, self.g = W, _check_gutter(gutter_px, mip_levels, W, H)
+        self._known: dict[tuple[int, int], tuple] = {}
+        self._quick: tuple = ((), None)         # (keys of the set last laid out quickly, its (s, payload))
+
+    def _charts(self, uvs, faces):
+        """(uvs as float arrays, faces, rects (n,3), total area, keys), the rectangles and areas of unseen
+        charts found together."""
+        keys = [(id(u), id(F)) for u, F in zip(uvs, faces)]
+        new = [i for i, k in enumerate(keys) if k not in self._known]
+        if new:
+            us = [np.asarray(uvs[i], dtype=np.float64) for i in new]
+            Fs = [np.asarray(faces[i], dtype=np.int64) for i in new]
+            for i, u, F, r in zip(new, us, Fs, min_area_rects(us)):
+                self._known[keys[i]] = (uvs[i], faces[i], u, F, r, float(np.abs(signed_areas(u, F)).sum()))
+        got = [self._known[k] for k in keys]
+        return [c[2] for c in got], [c[3] for c in got], np.array([c[4] for c in got]).reshape(-1, 3), \
+            sum(c[5] for c in got), tuple(keys)
+
+    def fill(self, uvs: Sequence[ArrayLike], faces: Sequence[ArrayLike]) -> float:
+        """The charts' area over their minimum-area rectangles' (see _SHAPES_ONLY_FILL)."""
+        _, _, rects, area, _ = self._charts(uvs, faces)
+        box = float((rects[:, 1] * rects[:, 2]).sum())
+        return area / box if box > 0 else 1.0
+
+    def __call__(self, uvs: Sequence[ArrayLike], faces: Sequence[ArrayLike], quick: bool = False) -> PackResult:
+        import time
+
+        t0 = time.perf_counter()
+        us, _, rects, area, keys = self._charts(uvs, faces)
+        N, g = self.N, self.g
+        if quick:
+            s, payload = _box_search(len(us), N, g, rects, orders=_QUICK_ORDERS, rel_tol=_QUICK_TOL)
+            self._quick = (keys, (s, payload))
+        else:
+            s, payload = _box_search(len(us), N, g, rects, start=self._quick[1] if self._quick[0] == keys else None)
+        s, rotation, offset, out, gap = _boxes_placed(us, N, g, rects, s, payload)
+        density = s * N
+        return PackResult(uv=out, scale=float(density / N), texel_size_world=float(1.0 / density), rotation=rotation,
+                          offset=offset, efficiency=float(density * density * area / (N * N)), texture_size_px=N,
+                          gutter_px=g, method="maxrects", time_s=time.perf_counter() - t0, min_gap_px=gap,
+                          width_px=N, height_px=N, texel_density=float(density))
+
+
 # ------------------------------------------------------------------------------------------- API
 
 def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike], *,
                 texture_size_px: int | tuple[int, int] | None = 1024, gutter_px: int | None = None,
                 rotate: bool = True, method: str = "auto", texel_density: float | None = None,
-                mip_levels: int | None = None, aspect: str = "square") -> PackResult:
+                mip_levels: int | None = None, aspect: str = "square",
+                floor_efficiency: float | None = None) -> PackResult | None:
     """Pack charts into one atlas in [0,1]^2 at a common scale, ``gutter_px`` texels apart.
 
     Parameters
@@ -301,10 +380,15 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
     aspect : "square" | "free"
         Shape of an atlas that grows (``texture_size_px=None``): square, or the rectangle of fewest
         texels (a long ribbon gets a long atlas).
+    floor_efficiency : float, optional
+        Only a packing at least this efficient is of use (a caller that keeps another layout below it):
+        the shape search of a square atlas at a free scale may stop once it cannot reach it, and None
+        is returned instead of any packing below it.
 
     Returns
     -------
-    :class:`PackResult`; ``efficiency`` = sum of |triangle areas| in texels / (width * height).
+    :class:`PackResult` (or None, see ``floor_efficiency``); ``efficiency`` = sum of |triangle areas|
+    in texels / (width * height).
     """
     import time
 
@@ -327,9 +411,15 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
         raise InputError(f"aspect={aspect!r} is not 'square' or 'free'; pick one of those")
     if aspect == "free" and W is not None:
         raise InputError("aspect='free' sizes a growing atlas; pass texture_size_px=None with texel_density")
+    area = sum(np.abs(signed_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
     if used == "shape":
-        s, rotation, offset, out, gap, W, H, density, used = _place_shapes_or_boxes(
-            uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes=method == "auto")
+        floor = None if floor_efficiency is None or density is not None or W is None else \
+            float(np.sqrt(float(floor_efficiency) * W * H / area))
+        placed = _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes=method == "auto",
+                                        floor=floor)
+        if placed is None:
+            return None
+        s, rotation, offset, out, gap, W, H, density, used = placed
     else:
         s, rotation, offset, out, gap, used = _place_free_scale(uvs, faces, W, g, rotate, used)
         density = s * W
@@ -337,8 +427,9 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
     if density * max(extents) < 1.0:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the largest chart "
                          f"would be under one texel; reduce gutter_px or increase texture_size_px")
-    area = sum(np.abs(signed_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
     eff = float(density * density * area / (W * H))
+    if floor_efficiency is not None and eff < floor_efficiency:
+        return None
     return PackResult(uv=out, scale=float(density / W), texel_size_world=float(1.0 / density), rotation=rotation,
                       offset=offset, efficiency=eff, texture_size_px=W, gutter_px=g, method=used,
                       time_s=time.perf_counter() - t0, min_gap_px=gap, width_px=W, height_px=H,
@@ -353,12 +444,13 @@ _BOXES_ONLY_FILL = 0.8
 _SHAPES_ONLY_FILL = 0.7
 
 
-def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
+def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes, floor=None):
     """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the
     denser wins), unless the boxes' fill decides alone (_BOXES_ONLY_FILL, _SHAPES_ONLY_FILL).
 
     One chart: its box in the square is what shapes reach too (they try the same angles), so the shape
-    search is skipped; the shape search gives up once it cannot beat the boxes.
+    search is skipped; the shape search gives up once it cannot beat the boxes or the density ``floor``
+    (None is returned when neither boxes nor shapes were placed).
     """
     boxes = None
     rects = min_area_rects(uvs) if rotate else None
@@ -370,9 +462,11 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
         if boxes is not None and (len(uvs) == 1 or fill >= _BOXES_ONLY_FILL):
             return (*boxes, W, H, boxes[0] * W, "maxrects")
     shapes = _place_shapes(uvs, faces, W, H, g, density, rotate, K, aspect, rects,
-                           guess=None if boxes is None else boxes[0] * W)
+                           guess=None if boxes is None else boxes[0] * W, floor=floor)
     if boxes is not None and (shapes is None or boxes[0] > shapes[0] * (1 + 1e-12)):
         return (*boxes, W, H, boxes[0] * W, "maxrects")
+    if shapes is None:
+        return None
     s, rotation, offset, out, gap, W, H, density = shapes
     return s, rotation, offset, out, gap, W, H, density, "shape"
 
@@ -439,8 +533,10 @@ _ORDERS_FROM = 4
 _ORDERS_UP_TO = 8
 
 
-def _fit_free_scale(packer, W, H, g, guess):
-    """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
+def _fit_free_scale(packer, W, H, g, guess, floor=None):
+    """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density).
+    With ``floor`` (a density only a denser packing is of use above) the strip search stops early below
+    it (fit_width's floor; fit_scale ignores it), and may return None."""
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
@@ -450,9 +546,9 @@ def _fit_free_scale(packer, W, H, g, guess):
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess, rounds=1,
+                      floor=guess if floor is None else max(floor, guess or 0.0), rounds=1,
                       order_packs=2 if _ORDERS_FROM < n and (n <= _ORDERS_UP_TO or big) else 0)
-    if p is None and guess is not None:
+    if p is None and (guess is not None or floor is not None):
         return None
     if p is None:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
@@ -493,18 +589,18 @@ def _grow(packer, g, density, mip_levels, aspect):
     return W, W, p
 
 
-def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None):
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, floor=None):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing.
 
     With ``guess`` (a box packing's density) the free-scale search gives up, returning None, as soon as
-    it is clear shapes will not beat it.
+    it is clear shapes will not beat it; so may it below ``floor`` (a density).
     """
     from uvbake.atlas.shapepack import ShapePacker
 
     few = rotate and density is None and len(uvs) <= 4
     packer = ShapePacker(uvs, faces, _shape_angles(len(uvs), rects, rotate, few), quarter_turns=bool(rotate))
     if density is None:
-        p = _fit_free_scale(packer, W, H, g, guess)
+        p = _fit_free_scale(packer, W, H, g, guess, floor)
         if p is None:
             return None
     elif W is None:

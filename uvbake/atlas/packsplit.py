@@ -42,34 +42,61 @@ IMBALANCE = 2.0
 
 
 def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
-                      pack: Callable[[list, list], Any], *, trial_pack: Callable[[list, list], Any] | None = None,
+                      pack: Callable[..., Any], *, boxes: Any = None,
                       max_charts: int | None = None) -> tuple[list[Chart], list[ParamResult], Any, list[dict]]:
-    """Charts (some split), their results, the packing of them (``pack(uvs, Fs)``, a PackResult) and
-    one record per kept split (chart, parts, seam length, efficiency before and after).
+    """Charts (some split), their results, the packing of them (a PackResult) and one record per kept
+    split (chart, parts, seam length, efficiency before and after).
 
-    Each round's split is judged by ``trial_pack`` (default ``pack``; the pipeline passes its fast
-    rectangle packer); the split charts are then packed by ``pack`` too unless their boxes fill
-    enough for boxes to compete (:func:`_boxes_suffice`), and the denser of that and the last trial
-    layout is kept when it beats the first layout by MIN_GAIN (else the splits are dropped): at most
-    two calls of ``pack``."""
-    trial_pack = trial_pack or pack
+    ``pack(uvs, Fs)`` packs a set of charts; ``pack(uvs, Fs, floor=e)`` may give up (None) when it
+    cannot reach efficiency ``e``. ``boxes`` (a :class:`uvbake.atlas.pack.BoxLayouts`, the fast
+    rectangle packer; None: ``pack`` makes every layout) makes the trial layouts that judge each round
+    (its quick ones) and, when the split charts' boxes fill enough for boxes to compete, their final
+    layout; else the split charts are packed by ``pack`` too, asked only for a layout that beats the
+    trial layout and the first packing by MIN_GAIN (:func:`_final_layout`). The splits are kept when
+    the final layout beats the first by MIN_GAIN: at most two calls of ``pack``."""
     charts, results = list(charts), list(results)
     packed = pack([r.uv for r in results], [c.F for c in charts])
     if packed.efficiency >= BELOW_EFFICIENCY or _largest(charts, results) is None:
         return charts, results, packed, []
-    cur = trial_pack([r.uv for r in results], [c.F for c in charts]) if trial_pack is not pack else packed
-    cur_c, cur_r, cur, records = _rounds(charts, results, cur, trial_pack, max_charts)
+
+    def trial(uvs, Fs):
+        return pack(uvs, Fs) if boxes is None else boxes(uvs, Fs, quick=True)
+    cur = trial([r.uv for r in results], [c.F for c in charts]) if boxes is not None else packed
+    cur_c, cur_r, cur, records = _rounds(charts, results, cur, trial, max_charts)
     if not records:
         return charts, results, packed, []
-    final = cur                                          # the trial layout is a layout too: the denser is kept
-    if trial_pack is not pack and not _boxes_suffice(cur_c, cur_r):
-        full = pack([r.uv for r in cur_r], [c.F for c in cur_c])
-        final = full if full.efficiency >= cur.efficiency else cur
-    if final.efficiency < packed.efficiency + MIN_GAIN:
+    final = cur if boxes is None else _final_layout(cur_c, cur_r, cur, packed, pack, boxes)
+    if final is None or final.efficiency < packed.efficiency + MIN_GAIN:
         return charts, results, packed, []
     for rec in records:
         rec.update(efficiency_before=float(packed.efficiency), efficiency_after=float(final.efficiency))
     return cur_c, cur_r, final, records
+
+
+def _final_layout(charts, results, trial, packed, pack, boxes):
+    """The split charts' layout, or None when none can beat the first layout ``packed`` by MIN_GAIN.
+
+    Charts filling their minimum-area boxes to at least the packer's own _SHAPES_ONLY_FILL (0.7):
+    their full rectangle layout (there it won anyway: bumpy's pieces, fill 0.71: shapes 62.4 against
+    boxes 64.5 %; sphere_cap's, 0.75: level); below it shapes win (beetle's, 0.57: 52.7 against
+    47.6 %), so ``pack`` runs, asked only for a layout beating both
+    the trial layout and ``packed`` by MIN_GAIN (its shape search may stop early below that: on
+    halftunnel, whose pieces never beat the first layout, it took 29 instead of 60 ms); when it cannot
+    and the trial layout beats ``packed`` by MIN_GAIN, the full rectangle layout is kept. A full
+    rectangle layout replaces the quick trial layout only when at least as dense."""
+    from uvbake.atlas.pack import _SHAPES_ONLY_FILL
+
+    uvs, Fs = [r.uv for r in results], [c.F for c in charts]
+
+    def rectangles():
+        full = boxes(uvs, Fs)
+        return full if full.efficiency >= trial.efficiency else trial
+    if boxes.fill(uvs, Fs) >= _SHAPES_ONLY_FILL:
+        return rectangles()
+    full = pack(uvs, Fs, floor=max(packed.efficiency + MIN_GAIN, trial.efficiency))
+    if full is not None:
+        return full
+    return rectangles() if trial.efficiency >= packed.efficiency + MIN_GAIN else None
 
 
 def _rounds(charts, results, cur, trial_pack, max_charts):
@@ -96,17 +123,6 @@ def _rounds(charts, results, cur, trial_pack, max_charts):
         if trial.efficiency >= best[2].efficiency + TRIAL_GAIN:
             best = (charts, results, trial, len(records))
     return best[0], best[1], best[2], records[:best[3]]
-
-
-def _boxes_suffice(charts, results):
-    """Whether the charts' minimum-area rectangles fill at least the share above which the packer
-    lets boxes compete with shapes: there the trial (rectangle) layout is kept without packing the
-    shapes (bumpy's pieces, fill 0.71: shapes 62.4 against boxes 64.5 %; sphere_cap's, 0.75: level),
-    below it shapes win (beetle's, 0.57: 52.7 against 47.6 %)."""
-    from uvbake.atlas.pack import _SHAPES_ONLY_FILL, _box_fill, min_area_rects
-
-    uvs = [np.asarray(r.uv) for r in results]
-    return _box_fill(uvs, [c.F for c in charts], min_area_rects(uvs)) >= _SHAPES_ONLY_FILL
 
 
 def _largest(charts, results):

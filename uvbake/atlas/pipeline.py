@@ -416,18 +416,18 @@ def _pack_and_validate(run, pack_options):
     t = time.perf_counter()
     F = run.F
 
-    def pack(uvs, Fs):
-        return pack_charts(uvs, Fs, **pack_options)
+    def pack(uvs, Fs, floor=None):
+        return pack_charts(uvs, Fs, **pack_options, floor_efficiency=floor)
 
     if run.opts["guarantee"] and run.opts["pack_splits"]:
+        from uvbake.atlas.pack import BoxLayouts
         from uvbake.atlas.packsplit import split_for_packing
 
-        def trial(uvs, Fs):                            # judging a split: the fast rectangle packer
-            return pack_charts(uvs, Fs, **(pack_options | {"method": "maxrects"}))
-
-        # the rectangle packer places at a scale of its own: with a fixed texel density, trials are full packings
-        fast = trial if pack_options.get("texel_density") is None else None
-        run.charts, run.results, packed, split = split_for_packing(run.charts, run.results, pack, trial_pack=fast,
+        # splits are judged on the fast rectangle packer, which places at a scale of its own: with a fixed
+        # texel density, trials are full packings
+        boxes = None if pack_options.get("texel_density") is not None else BoxLayouts(
+            pack_options["texture_size_px"], pack_options["gutter_px"], pack_options["mip_levels"])
+        run.charts, run.results, packed, split = split_for_packing(run.charts, run.results, pack, boxes=boxes,
                                                                    max_charts=run.opts["max_charts"])
         run.splits = list(run.splits) + split
     else:
