@@ -90,13 +90,21 @@ def min_area_rect(P: np.ndarray) -> tuple[float, float, float]:
     return _rect_of_hull(_hull_points(np.asarray(P, dtype=np.float64)))
 
 
-def min_area_rects(Ps: list) -> np.ndarray:
-    """min_area_rect of every point set of ``Ps`` as a (n,3) array, the hulls found together
-    (convex_hulls_2d)."""
+def chart_hulls(Ps: list) -> list:
+    """Each point set's convex hull vertices as indices (convex_hull_2d; sets of under 3 points: all
+    their points), the hulls found together (convex_hulls_2d)."""
     Ps = [np.asarray(P, dtype=np.float64) for P in Ps]
     big = [i for i, P in enumerate(Ps) if len(P) >= 3]
     hulls = dict(zip(big, convex_hulls_2d([Ps[i] for i in big])))
-    return np.array([_rect_of_hull(P[hulls[i]] if i in hulls else P) for i, P in enumerate(Ps)]).reshape(-1, 3)
+    return [hulls[i] if i in hulls else np.arange(len(P)) for i, P in enumerate(Ps)]
+
+
+def min_area_rects(Ps: list, hulls: list | None = None) -> np.ndarray:
+    """min_area_rect of every point set of ``Ps`` as a (n,3) array (``hulls``: their chart_hulls, when
+    known)."""
+    Ps = [np.asarray(P, dtype=np.float64) for P in Ps]
+    hulls = chart_hulls(Ps) if hulls is None else hulls
+    return np.array([_rect_of_hull(P[h]) for P, h in zip(Ps, hulls)]).reshape(-1, 3)
 
 
 def _rect_of_hull(H):

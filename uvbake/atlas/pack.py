@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.atlas.maxrects import _REL_TOL, _RULES, _own_packers, _pack_boxes, min_area_rects, rotation_2d
+from uvbake.atlas.maxrects import _REL_TOL, _RULES, _own_packers, _pack_boxes, chart_hulls, min_area_rects, rotation_2d
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import signed_areas
 
@@ -453,7 +453,8 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
     (None is returned when neither boxes nor shapes were placed).
     """
     boxes = None
-    rects = min_area_rects(uvs) if rotate else None
+    hulls = chart_hulls(uvs) if rotate else None               # the rectangles' and the shape search's
+    rects = min_area_rects(uvs, hulls) if rotate else None
     if try_boxes and W == H and density is None and len(uvs) <= 64:
         fill = _box_fill(uvs, faces, rects)
         if len(uvs) == 1 or fill >= _SHAPES_ONLY_FILL:
@@ -462,7 +463,7 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
         if boxes is not None and (len(uvs) == 1 or fill >= _BOXES_ONLY_FILL):
             return (*boxes, W, H, boxes[0] * W, "maxrects")
     shapes = _place_shapes(uvs, faces, W, H, g, density, rotate, K, aspect, rects,
-                           guess=None if boxes is None else boxes[0] * W, floor=floor)
+                           guess=None if boxes is None else boxes[0] * W, floor=floor, hulls=hulls)
     if boxes is not None and (shapes is None or boxes[0] > shapes[0] * (1 + 1e-12)):
         return (*boxes, W, H, boxes[0] * W, "maxrects")
     if shapes is None:
@@ -589,7 +590,8 @@ def _grow(packer, g, density, mip_levels, aspect):
     return W, W, p
 
 
-def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, floor=None):
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, floor=None,
+                  hulls=None):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing.
 
     With ``guess`` (a box packing's density) the free-scale search gives up, returning None, as soon as
@@ -598,7 +600,8 @@ def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rect
     from uvbake.atlas.shapepack import ShapePacker
 
     few = rotate and density is None and len(uvs) <= 4
-    packer = ShapePacker(uvs, faces, _shape_angles(len(uvs), rects, rotate, few), quarter_turns=bool(rotate))
+    packer = ShapePacker(uvs, faces, _shape_angles(len(uvs), rects, rotate, few), quarter_turns=bool(rotate),
+                         hulls=hulls)
     if density is None:
         p = _fit_free_scale(packer, W, H, g, guess, floor)
         if p is None:

@@ -359,9 +359,10 @@ class ShapePacker:
     uvs, faces : lists of (k_i,2) float and (t_i,3) int arrays   the charts, in world units
     angles : list of (r_i,) float arrays                         base rotations to try for each chart
     quarter_turns : bool                                         also try each base rotation + 90, 180, 270
+    hulls : list of int arrays, optional                         each chart's uvbake.atlas.maxrects.chart_hulls
     """
 
-    def __init__(self, uvs, faces, angles, *, quarter_turns=True):
+    def __init__(self, uvs, faces, angles, *, quarter_turns=True, hulls=None):
         self.uvs, self.faces, self.angles, self.quarter_turns = uvs, faces, angles, quarter_turns
         self.bedges = [boundary_halfedges(F) for F in faces]
         self.flipped = []
@@ -379,17 +380,16 @@ class ShapePacker:
             if not any(np.array_equal(o, q) for q in self.orders):
                 self.orders.append(o)
         self._density, self._cands, self._dilated = None, {}, {}          # footprints at the last density
-        self._hulls = None
+        self._hull_idx, self._hulls = hulls, None
 
     def hull_points(self) -> tuple[np.ndarray, np.ndarray]:
         """Every chart's convex hull vertices stacked (charts of under 3 vertices: all of them), and the
         chart each belongs to; computed once."""
         if self._hulls is None:
-            from uvbake.atlas.maxrects import convex_hulls_2d
+            from uvbake.atlas.maxrects import chart_hulls
 
-            big = [i for i, uv in enumerate(self.uvs) if len(uv) >= 3]
-            hulls = dict(zip(big, convex_hulls_2d([self.uvs[i] for i in big])))
-            pts = [uv[hulls[i]] if i in hulls else uv for i, uv in enumerate(self.uvs)]
+            hulls = chart_hulls(self.uvs) if self._hull_idx is None else self._hull_idx
+            pts = [uv[h] for uv, h in zip(self.uvs, hulls)]
             self._hulls = (np.concatenate(pts), np.repeat(np.arange(len(pts)), [len(q) for q in pts]))
         return self._hulls
 
