@@ -316,6 +316,10 @@ class BoxLayouts:
         return [c[2] for c in got], [c[3] for c in got], np.array([c[4] for c in got]).reshape(-1, 3), \
             sum(c[5] for c in got), tuple(keys)
 
+    def rect(self, uv: ArrayLike, F: ArrayLike) -> np.ndarray:
+        """One chart's min_area_rect (theta, w, h)."""
+        return self._charts([uv], [F])[2][0]
+
     def fill(self, uvs: Sequence[ArrayLike], faces: Sequence[ArrayLike]) -> float:
         """The charts' area over their minimum-area rectangles' (see _SHAPES_ONLY_FILL)."""
         _, _, rects, area, _ = self._charts(uvs, faces)
@@ -536,8 +540,9 @@ _ORDERS_UP_TO = 8
 
 def _fit_free_scale(packer, W, H, g, guess, floor=None):
     """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density).
-    With ``floor`` (a density only a denser packing is of use above) the strip search stops early below
-    it (fit_width's floor; fit_scale ignores it), and may return None."""
+    With ``floor`` (a density only a denser packing is of use above) other chart orders are tried only
+    when the strip widths reached it (fit_width's orders_from; fit_scale ignores it): the same packing
+    whenever the widths reach the floor."""
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
@@ -547,9 +552,9 @@ def _fit_free_scale(packer, W, H, g, guess, floor=None):
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess if floor is None else max(floor, guess or 0.0), rounds=1,
+                      floor=guess, rounds=1, orders_from=floor,
                       order_packs=2 if _ORDERS_FROM < n and (n <= _ORDERS_UP_TO or big) else 0)
-    if p is None and (guess is not None or floor is not None):
+    if p is None and guess is not None:
         return None
     if p is None:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "

@@ -62,7 +62,8 @@ def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
     def trial(uvs, Fs):
         return pack(uvs, Fs) if boxes is None else boxes(uvs, Fs, quick=True)
     cur = trial([r.uv for r in results], [c.F for c in charts]) if boxes is not None else packed
-    cur_c, cur_r, cur, records = _rounds(charts, results, cur, trial, max_charts)
+    cur_c, cur_r, cur, records = _rounds(charts, results, cur, trial, max_charts,
+                                         None if boxes is None else boxes.rect)
     if not records:
         return charts, results, packed, []
     final = cur if boxes is None else _final_layout(cur_c, cur_r, cur, packed, pack, boxes)
@@ -94,22 +95,24 @@ def _final_layout(charts, results, trial, packed, pack, boxes):
     if boxes.fill(uvs, Fs) >= _SHAPES_ONLY_FILL:
         return rectangles()
     full = pack(uvs, Fs, floor=max(packed.efficiency + MIN_GAIN, trial.efficiency))
-    if full is not None:
+    if full is not None and full.efficiency >= trial.efficiency:
         return full
     return rectangles() if trial.efficiency >= packed.efficiency + MIN_GAIN else None
 
 
-def _rounds(charts, results, cur, trial_pack, max_charts):
+def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
     """Split rounds judged on trial layouts: every round splits the largest chart whether or not its
     layout gains (two halves may pay where one does not: sphere_cap's two half-caps 45.9 -> 45.9 ->
     63.8 %); the prefix of rounds with the densest trial layout is kept when it gains TRIAL_GAIN.
+    ``rect(uv, F)``: a chart's minimum-area rectangle when known (the box layouts found it).
     Returns (charts, results, their trial layout, records)."""
     records: list[dict] = []
     best = (charts, results, cur, 0)
     for _ in range(MAX_ROUNDS):                          # rounds: one split each
         check_cancelled()                                # Ctrl-C / SIGTERM: stop between rounds
         i = _largest(charts, results)
-        cut = None if i is None else split_straight(charts[i], results[i])
+        cut = None if i is None else split_straight(
+            charts[i], results[i], None if rect is None else rect(results[i].uv, charts[i].F)[0])
         if cut is None:
             break
         parts, part_results, seam = cut
@@ -132,8 +135,10 @@ def _largest(charts, results):
     return i if area[i] >= MIN_SHARE * area.sum() and len(charts[i].F) >= 8 else None
 
 
-def split_straight(chart: Chart, result: ParamResult) -> tuple[list[Chart], list[ParamResult], float] | None:
-    """``chart`` cut across the long axis of its map's minimum-area rectangle, at the area quantile in
+def split_straight(chart: Chart, result: ParamResult,
+                   theta: float | None = None) -> tuple[list[Chart], list[ParamResult], float] | None:
+    """``chart`` cut across the long axis of its map's minimum-area rectangle (``theta``: that
+    rectangle's angle, uvbake.atlas.maxrects.min_area_rect, when known), at the area quantile in
     POSITIONS whose 3D seam is shortest (slivers given back to a neighbour), each piece with the
     parent's map restricted to it; None when no cut gives two pieces."""
     from uvbake.atlas.charting import SLIVER_SHARE, _absorb_slivers, sub_charts
@@ -142,7 +147,7 @@ def split_straight(chart: Chart, result: ParamResult) -> tuple[list[Chart], list
 
     F, uv = chart.F, np.asarray(result.uv)
     m, n = len(F), len(chart.V)
-    theta = min_area_rect(uv)[0]
+    theta = min_area_rect(uv)[0] if theta is None else theta
     c = uv[F].mean(axis=1)
     x = np.cos(theta) * c[:, 0] - np.sin(theta) * c[:, 1]      # along the rectangle's long side
     a = np.abs(signed_areas(uv, F))

@@ -1,0 +1,199 @@
+"""What keeps packing splits cheap (issue 13, packing's share of the command): the MaxRects free-space
+update, BoxLayouts (quick trial layouts, charts' rectangles found once, full layouts started from the
+last trial) and the floor a final shape packing is asked to beat.
+
+Distances are checked with test_pack's independent helper (vertex-to-triangle distances, edge crossings).
+"""
+
+import numpy as np
+import pytest
+
+import uvbake
+import uvbake.atlas.pack as pack_module
+from uvbake.atlas import packsplit
+from uvbake.atlas.maxrects import _RULES, _maxrects
+from uvbake.atlas.pack import BoxLayouts, pack_charts
+
+from meshgen import cone, cut_cylinder
+from test_pack import chart_set, min_gap
+
+N, G = 256, 3
+
+
+def _reference_maxrects(sizes, order, rule, allow_turn=True):
+    """MaxRects as first written (one orientation at a time, every free rectangle tested for containment
+    in every other after each placement): the reference the faster update must match exactly."""
+    free = np.array([[0.0, 0.0, 1.0, 1.0]])
+    placed = np.empty((0, 4))
+    pos, turned = np.zeros((len(sizes), 2)), np.zeros(len(sizes), bool)
+    for i in order:
+        best = None
+        fw, fh = free[:, 2] - free[:, 0], free[:, 3] - free[:, 1]
+        for t, (w, h) in enumerate((sizes[i], sizes[i][::-1])):
+            if t == 1 and (not allow_turn or sizes[i][0] == sizes[i][1]):
+                break
+            idx = np.flatnonzero((fw >= w) & (fh >= h))
+            if not len(idx):
+                continue
+            lw, lh = fw[idx] - w, fh[idx] - h
+            if rule == "bssf":
+                s1, s2 = np.minimum(lw, lh), np.maximum(lw, lh)
+            elif rule == "blsf":
+                s1, s2 = np.maximum(lw, lh), np.minimum(lw, lh)
+            elif rule == "baf":
+                s1, s2 = fw[idx] * fh[idx] - w * h, np.minimum(lw, lh)
+            elif rule == "bl":
+                s1, s2 = free[idx, 1] + h, free[idx, 0]
+            else:
+                x0, y0 = free[idx, 0], free[idx, 1]
+                x1, y1 = x0 + w, y0 + h
+                contact = ((x0 == 0) + (x1 >= 1)) * h + ((y0 == 0) + (y1 >= 1)) * w
+                if len(placed):                  # summed over placed boxes as numpy does (the same roundings)
+                    px0, py0, px1, py1 = (placed[:, j][None, :] for j in range(4))
+                    ov_y = np.clip(np.minimum(y1[:, None], py1) - np.maximum(y0[:, None], py0), 0, None)
+                    ov_x = np.clip(np.minimum(x1[:, None], px1) - np.maximum(x0[:, None], px0), 0, None)
+                    touch_x = (px1 == x0[:, None]) | (px0 == x1[:, None])
+                    touch_y = (py1 == y0[:, None]) | (py0 == y1[:, None])
+                    contact = contact + (touch_x * ov_y).sum(1) + (touch_y * ov_x).sum(1)
+                s1, s2 = -contact, free[idx, 1]
+            j = np.lexsort((s2, s1))[0]
+            if best is None or (s1[j], s2[j]) < best[:2]:
+                best = (s1[j], s2[j], idx[j], t, w, h)
+        if best is None:
+            return None
+        _, _, f, t, w, h = best
+        r = np.array([free[f, 0], free[f, 1], free[f, 0] + w, free[f, 1] + h])
+        pos[i], turned[i] = r[:2], bool(t)
+        placed = np.vstack([placed, r])
+        keep, pieces = [], []
+        for q in free:
+            if q[0] < r[2] and q[2] > r[0] and q[1] < r[3] and q[3] > r[1]:
+                pieces += [p for p, ok in (([q[0], q[1], r[0], q[3]], q[0] < r[0]), ([r[2], q[1], q[2], q[3]], q[2] > r[2]),
+                                           ([q[0], q[1], q[2], r[1]], q[1] < r[1]), ([q[0], r[3], q[2], q[3]], q[3] > r[3]))
+                           if ok]
+            else:
+                keep.append(q)
+        A = np.array(keep + [np.array(p) for p in pieces]).reshape(-1, 4)
+        out = []
+        for a in range(len(A)):                  # contained in another (of equal ones the first stays)
+            inside = [b for b in range(len(A)) if b != a and np.all(A[a, :2] >= A[b, :2]) and np.all(A[a, 2:] <= A[b, 2:])]
+            if not any(not np.array_equal(A[a], A[b]) or b < a for b in inside):
+                out.append(A[a])
+        free = np.array(out).reshape(-1, 4)
+    return pos, turned
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_maxrects_places_every_box_exactly_where_the_reference_update_does(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 16))
+    sizes = rng.uniform(0.03, 0.35, (n, 2))
+    if seed % 2:                                 # many equal sizes: ties between free rectangles and turns
+        sizes = np.round(sizes * 8) / 32 + 0.01
+        sizes[0] = sizes[0, 0]
+    order = rng.permutation(n)
+    for rule in _RULES:
+        for turn in (True, False):
+            got, ref = _maxrects(sizes, order, rule, turn), _reference_maxrects(sizes, order, rule, turn)
+            assert (got is None) == (ref is None)
+            if ref is not None:
+                assert np.array_equal(got[0], ref[0]) and np.array_equal(got[1], ref[1])
+
+
+def _charts(seed, n=6):
+    uvs, faces = chart_set(seed, n)
+    return [np.asarray(u, float) for u in uvs], [np.asarray(f, np.int64) for f in faces]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_box_layouts_are_the_maxrects_packing_and_quick_ones_keep_the_gutter(seed):
+    uvs, faces = _charts(seed)
+    ref = pack_charts(uvs, faces, texture_size_px=N, gutter_px=G, method="maxrects")
+    full = BoxLayouts(N, G)(uvs, faces)                      # nothing laid out quickly before: the same search
+    assert full.efficiency == ref.efficiency
+    assert all(np.array_equal(a, b) for a, b in zip(full.uv, ref.uv))
+    layouts = BoxLayouts(N, G)
+    quick = layouts(uvs, faces, quick=True)
+    for p in (quick, layouts(uvs, faces)):                   # the full one starts from the quick one
+        assert min_gap([u * N for u in p.uv], faces) >= G * (1 - 1e-9)
+        assert all(u.min() >= 0 and u.max() <= 1 for u in p.uv)
+    started = layouts(uvs, faces)
+    assert started.efficiency >= quick.efficiency
+    # a quick layout is a ranking: within 2 points of the full search (1 % of the scale, one order)
+    assert quick.efficiency >= ref.efficiency - 0.02
+
+
+def test_box_layouts_find_each_charts_rectangle_once(monkeypatch):
+    uvs, faces = _charts(4)
+    seen = []
+    real = pack_module.min_area_rects
+    monkeypatch.setattr(pack_module, "min_area_rects", lambda Ps, *a: seen.append(len(Ps)) or real(Ps, *a))
+    layouts = BoxLayouts(N, G)
+    layouts(uvs[:4], faces[:4], quick=True)
+    layouts(uvs, faces, quick=True)
+    layouts(uvs, faces)
+    assert layouts.fill(uvs, faces) > 0
+    assert seen == [4, 2]
+    # a chart with the same UVs in a new array is a new chart (identity, not content, is the key)
+    layouts([u.copy() for u in uvs[:1]], faces[:1], quick=True)
+    assert seen == [4, 2, 1]
+
+
+def _strip_pieces(rounds=3):
+    """The charts of a cut-open cylinder (one long chart) after ``rounds`` straight splits: the sets a
+    packing split's rounds compare."""
+    V, F = cut_cylinder(40, 8, radius=1.0, height=1.0, sweep=1.8 * np.pi)
+    res = uvbake.unwrap((V, F), alpha=0.5, pack_splits=False)
+    charts, results = list(res.charts), list(res.results)
+    sets = [(charts, results)]
+    for _ in range(rounds):
+        i = packsplit._largest(charts, results)
+        parts, part_results, _ = packsplit.split_straight(charts[i], results[i])
+        charts = charts[:i] + parts + charts[i + 1:]
+        results = results[:i] + part_results + results[i + 1:]
+        sets.append((charts, results))
+    return sets
+
+
+def test_quick_trial_layouts_rank_split_rounds_as_full_layouts_do():
+    sets = _strip_pieces()
+    layouts = BoxLayouts(1024, 4)
+    quick = [layouts([r.uv for r in rs], [c.F for c in cs], quick=True).efficiency for cs, rs in sets]
+    full = [pack_charts([r.uv for r in rs], [c.F for c in cs], method="maxrects").efficiency for cs, rs in sets]
+    assert int(np.argmax(quick)) == int(np.argmax(full))
+    np.testing.assert_allclose(quick, full, atol=0.02)        # a 1 % scale tolerance, one chart order
+
+
+def test_a_floor_gives_none_below_it_and_the_same_packing_well_below_what_is_reached():
+    uvs, faces = _charts(1, 5)
+    free = pack_charts(uvs, faces, texture_size_px=N, gutter_px=G, method="shape")
+    assert pack_charts(uvs, faces, texture_size_px=N, gutter_px=G, method="shape", floor_efficiency=0.99) is None
+    low = pack_charts(uvs, faces, texture_size_px=N, gutter_px=G, method="shape",
+                      floor_efficiency=free.efficiency - 0.2)
+    assert low is not None and low.efficiency == free.efficiency
+    assert all(np.array_equal(a, b) for a, b in zip(low.uv, free.uv))
+
+
+def _split_outcome(charts, results, honour_floor):
+    floors = []
+
+    def pack(uvs, Fs, floor=None):
+        floors.append(floor)
+        return pack_charts(uvs, Fs, floor_efficiency=floor if honour_floor else None)
+    c, _, packed, recs = packsplit.split_for_packing(charts, results, pack, boxes=BoxLayouts(1024, 4))
+    return (len(c), packed.efficiency, packed.method, len(recs)), floors
+
+
+@pytest.mark.parametrize("sweep", [1.0, 1.5, 1.8])
+def test_the_final_packings_floor_never_changes_what_packing_splits_keep(sweep):
+    """Cones opened along a generator flatten to annulus sectors that fill their boxes badly, so the
+    split charts are shape-packed, asked for a layout beating the first packing and the trial layout
+    (the shape search then tries other chart orders only when its strip widths reach that): the same
+    charts, layout method and efficiency are kept as when the search ignores the floor (here: the
+    shape packing kept, none reaching it and the rectangles kept, and two pieces shape-packed)."""
+    V, F = cone(40, 8, sweep=sweep * np.pi, r0=0.4, r1=1.2, slope=0.8)
+    res = uvbake.unwrap((V, F), alpha=0.5, pack_splits=False)
+    with_floor, floors = _split_outcome(res.charts, res.results, True)
+    without, _ = _split_outcome(res.charts, res.results, False)
+    assert floors[0] is None and len(floors) == 2 and floors[1] > 0       # the final packing had a floor
+    assert with_floor == without and with_floor[3] >= 1
