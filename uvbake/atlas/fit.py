@@ -129,7 +129,7 @@ def scale_to_border(packer: ShapePacker, p: ShapePacking, width: int, height: in
 
 def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, guess: float, *, coarse_px: int = 256,
               packs: int = 5, floor: float | None = None, rounds: int = 2,
-              order_packs: int = 2, orders_from: float | None = None) -> ShapePacking | None:
+              order_packs: int = 2) -> ShapePacking | None:
     """Largest common density found by packing the charts once rasterised, in strips of several widths.
 
     The charts are rasterised once, ``c`` times coarser than the atlas (as in fit_scale), at a density
@@ -140,9 +140,7 @@ def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, gues
     widths tried again; ``rounds - 1`` more rounds start at 0.95 of the best density found. With
     ``floor`` (a density to beat) a round stops after two trials below it. Then each other chart
     order of the packer (``packer.orders``) gets ``order_packs`` trials on the best round's raster,
-    from its best width, unless the best density so far is under ``orders_from`` (a caller with no use
-    for a packing under it; the rounds before are the same with or without it). Returns the densest
-    full-resolution ShapePacking, or None.
+    from its best width. Returns the densest full-resolution ShapePacking, or None.
     """
     g = int(gutter_px)
     c = _coarse_factor(width, height, coarse_px)
@@ -163,8 +161,6 @@ def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, gues
         best, d0, w = q, d1, w1
     if best is None:
         return None
-    if orders_from is not None and best.density < orders_from:
-        return best
     for order in packer.orders[1:] if order_packs else []:     # the same raster, other chart orders
         q, _ = _width_trials(packer, width, height, g, c, cg, d0, w, order_packs, floor, order=order)
         if q is not None and q.density > best.density:

@@ -350,8 +350,7 @@ class BoxLayouts:
 def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike], *,
                 texture_size_px: int | tuple[int, int] | None = 1024, gutter_px: int | None = None,
                 rotate: bool = True, method: str = "auto", texel_density: float | None = None,
-                mip_levels: int | None = None, aspect: str = "square",
-                floor_efficiency: float | None = None) -> PackResult | None:
+                mip_levels: int | None = None, aspect: str = "square") -> PackResult:
     """Pack charts into one atlas in [0,1]^2 at a common scale, ``gutter_px`` texels apart.
 
     Parameters
@@ -384,15 +383,10 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
     aspect : "square" | "free"
         Shape of an atlas that grows (``texture_size_px=None``): square, or the rectangle of fewest
         texels (a long ribbon gets a long atlas).
-    floor_efficiency : float, optional
-        Only a packing at least this efficient is of use (a caller that keeps another layout below it):
-        the shape search of a square atlas at a free scale may stop once it cannot reach it, and None
-        is returned instead of any packing below it.
 
     Returns
     -------
-    :class:`PackResult` (or None, see ``floor_efficiency``); ``efficiency`` = sum of |triangle areas|
-    in texels / (width * height).
+    :class:`PackResult`; ``efficiency`` = sum of |triangle areas| in texels / (width * height).
     """
     import time
 
@@ -415,15 +409,9 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
         raise InputError(f"aspect={aspect!r} is not 'square' or 'free'; pick one of those")
     if aspect == "free" and W is not None:
         raise InputError("aspect='free' sizes a growing atlas; pass texture_size_px=None with texel_density")
-    area = sum(np.abs(signed_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
     if used == "shape":
-        floor = None if floor_efficiency is None or density is not None or W is None else \
-            float(np.sqrt(float(floor_efficiency) * W * H / area))
-        placed = _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes=method == "auto",
-                                        floor=floor)
-        if placed is None:
-            return None
-        s, rotation, offset, out, gap, W, H, density, used = placed
+        s, rotation, offset, out, gap, W, H, density, used = _place_shapes_or_boxes(
+            uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes=method == "auto")
     else:
         s, rotation, offset, out, gap, used = _place_free_scale(uvs, faces, W, g, rotate, used)
         density = s * W
@@ -431,9 +419,8 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
     if density * max(extents) < 1.0:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the largest chart "
                          f"would be under one texel; reduce gutter_px or increase texture_size_px")
+    area = sum(np.abs(signed_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
     eff = float(density * density * area / (W * H))
-    if floor_efficiency is not None and eff < floor_efficiency:
-        return None
     return PackResult(uv=out, scale=float(density / W), texel_size_world=float(1.0 / density), rotation=rotation,
                       offset=offset, efficiency=eff, texture_size_px=W, gutter_px=g, method=used,
                       time_s=time.perf_counter() - t0, min_gap_px=gap, width_px=W, height_px=H,
@@ -448,13 +435,12 @@ _BOXES_ONLY_FILL = 0.8
 _SHAPES_ONLY_FILL = 0.7
 
 
-def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes, floor=None):
+def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
     """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the
     denser wins), unless the boxes' fill decides alone (_BOXES_ONLY_FILL, _SHAPES_ONLY_FILL).
 
     One chart: its box in the square is what shapes reach too (they try the same angles), so the shape
-    search is skipped; the shape search gives up once it cannot beat the boxes or the density ``floor``
-    (None is returned when neither boxes nor shapes were placed).
+    search is skipped; the shape search gives up once it cannot beat the boxes.
     """
     boxes = None
     hulls = chart_hulls(uvs) if rotate else None               # the rectangles' and the shape search's
@@ -467,11 +453,9 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
         if boxes is not None and (len(uvs) == 1 or fill >= _BOXES_ONLY_FILL):
             return (*boxes, W, H, boxes[0] * W, "maxrects")
     shapes = _place_shapes(uvs, faces, W, H, g, density, rotate, K, aspect, rects,
-                           guess=None if boxes is None else boxes[0] * W, floor=floor, hulls=hulls)
+                           guess=None if boxes is None else boxes[0] * W, hulls=hulls)
     if boxes is not None and (shapes is None or boxes[0] > shapes[0] * (1 + 1e-12)):
         return (*boxes, W, H, boxes[0] * W, "maxrects")
-    if shapes is None:
-        return None
     s, rotation, offset, out, gap, W, H, density = shapes
     return s, rotation, offset, out, gap, W, H, density, "shape"
 
@@ -538,11 +522,8 @@ _ORDERS_FROM = 4
 _ORDERS_UP_TO = 8
 
 
-def _fit_free_scale(packer, W, H, g, guess, floor=None):
-    """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density).
-    With ``floor`` (a density only a denser packing is of use above) other chart orders are tried only
-    when the strip widths reached it (fit_width's orders_from; fit_scale ignores it): the same packing
-    whenever the widths reach the floor."""
+def _fit_free_scale(packer, W, H, g, guess):
+    """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
     from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
 
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
@@ -552,7 +533,7 @@ def _fit_free_scale(packer, W, H, g, guess, floor=None):
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
-                      floor=guess, rounds=1, orders_from=floor,
+                      floor=guess, rounds=1,
                       order_packs=2 if _ORDERS_FROM < n and (n <= _ORDERS_UP_TO or big) else 0)
     if p is None and guess is not None:
         return None
@@ -595,12 +576,11 @@ def _grow(packer, g, density, mip_levels, aspect):
     return W, W, p
 
 
-def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, floor=None,
-                  hulls=None):
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, hulls=None):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing.
 
     With ``guess`` (a box packing's density) the free-scale search gives up, returning None, as soon as
-    it is clear shapes will not beat it; so may it below ``floor`` (a density).
+    it is clear shapes will not beat it. ``hulls``: the charts' chart_hulls, when known.
     """
     from uvbake.atlas.shapepack import ShapePacker
 
@@ -608,7 +588,7 @@ def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rect
     packer = ShapePacker(uvs, faces, _shape_angles(len(uvs), rects, rotate, few), quarter_turns=bool(rotate),
                          hulls=hulls)
     if density is None:
-        p = _fit_free_scale(packer, W, H, g, guess, floor)
+        p = _fit_free_scale(packer, W, H, g, guess)
         if p is None:
             return None
     elif W is None:

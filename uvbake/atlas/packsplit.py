@@ -47,13 +47,11 @@ def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
     """Charts (some split), their results, the packing of them (a PackResult) and one record per kept
     split (chart, parts, seam length, efficiency before and after).
 
-    ``pack(uvs, Fs)`` packs a set of charts; ``pack(uvs, Fs, floor=e)`` may give up (None) when it
-    cannot reach efficiency ``e``. ``boxes`` (a :class:`uvbake.atlas.pack.BoxLayouts`, the fast
+    ``pack(uvs, Fs)`` packs a set of charts. ``boxes`` (a :class:`uvbake.atlas.pack.BoxLayouts`, the fast
     rectangle packer; None: ``pack`` makes every layout) makes the trial layouts that judge each round
     (its quick ones) and, when the split charts' boxes fill enough for boxes to compete, their final
-    layout; else the split charts are packed by ``pack`` too, asked only for a layout that beats the
-    trial layout and the first packing by MIN_GAIN (:func:`_final_layout`). The splits are kept when
-    the final layout beats the first by MIN_GAIN: at most two calls of ``pack``."""
+    layout; else the split charts are packed by ``pack`` too (:func:`_final_layout`). The splits are
+    kept when the final layout beats the first by MIN_GAIN: at most two calls of ``pack``."""
     charts, results = list(charts), list(results)
     packed = pack([r.uv for r in results], [c.F for c in charts])
     if packed.efficiency >= BELOW_EFFICIENCY or _largest(charts, results) is None:
@@ -80,10 +78,7 @@ def _final_layout(charts, results, trial, packed, pack, boxes):
     Charts filling their minimum-area boxes to at least the packer's own _SHAPES_ONLY_FILL (0.7):
     their full rectangle layout (there it won anyway: bumpy's pieces, fill 0.71: shapes 62.4 against
     boxes 64.5 %; sphere_cap's, 0.75: level); below it shapes win (beetle's, 0.57: 52.7 against
-    47.6 %), so ``pack`` runs, asked only for a layout beating both
-    the trial layout and ``packed`` by MIN_GAIN (its shape search may stop early below that: on
-    halftunnel, whose pieces never beat the first layout, it took 29 instead of 60 ms); when it cannot
-    and the trial layout beats ``packed`` by MIN_GAIN, the full rectangle layout is kept. A full
+    47.6 %), so ``pack`` runs, and the denser of its packing and the rectangles is kept. A full
     rectangle layout replaces the quick trial layout only when at least as dense."""
     from uvbake.atlas.pack import _SHAPES_ONLY_FILL
 
@@ -94,8 +89,8 @@ def _final_layout(charts, results, trial, packed, pack, boxes):
         return full if full.efficiency >= trial.efficiency else trial
     if boxes.fill(uvs, Fs) >= _SHAPES_ONLY_FILL:
         return rectangles()
-    full = pack(uvs, Fs, floor=max(packed.efficiency + MIN_GAIN, trial.efficiency))
-    if full is not None and full.efficiency >= trial.efficiency:
+    full = pack(uvs, Fs)
+    if full.efficiency >= trial.efficiency:
         return full
     return rectangles() if trial.efficiency >= packed.efficiency + MIN_GAIN else None
 

@@ -416,8 +416,8 @@ def _pack_and_validate(run, pack_options):
     t = time.perf_counter()
     F = run.F
 
-    def pack(uvs, Fs, floor=None):
-        return pack_charts(uvs, Fs, **pack_options, floor_efficiency=floor)
+    def pack(uvs, Fs):
+        return pack_charts(uvs, Fs, **pack_options)
 
     if run.opts["guarantee"] and run.opts["pack_splits"]:
         from uvbake.atlas.pack import BoxLayouts
