@@ -178,7 +178,7 @@ def test_quick_trials_keep_what_full_trials_keep(shape):
     charts as when judged on full ones, and an atlas as dense within 0.05 points (the kept rectangle
     layout is the full search started from the last trial)."""
     if shape == "torus":
-        V, F = torus(24, 12)
+        V, F = torus(24, 12, R=3.0, r=0.5)
     else:
         V, F = cone(40, 8, sweep=float(shape[4:]) * np.pi, r0=0.4, r1=1.2, slope=0.8)
     res = uvbake.unwrap((V, F), alpha=0.5, pack_splits=False)
