@@ -253,9 +253,8 @@ _REL_TOL = 1e-3          # relative precision of the scale bisection
 
 def bisect_scale(feasible: Callable[[float], Any], s_hi: float, lo: float | None = None,
                  lo_payload: Any = None,
-                 lift: Callable[[float, Any], tuple[float, Any]] | None = None,
-                 rel_tol: float = _REL_TOL) -> tuple[Any, Any]:
-    """Largest s <= s_hi with feasible(s) (assumed roughly monotone), to ``rel_tol``; returns (s, payload).
+                 lift: Callable[[float, Any], tuple[float, Any]] | None = None) -> tuple[Any, Any]:
+    """Largest s <= s_hi with feasible(s) (assumed roughly monotone), to _REL_TOL; returns (s, payload).
 
     ``lo`` (with its ``lo_payload``) is a scale already known to be feasible; without it one is found by
     halving from ``s_hi``. ``lift(s, payload)`` (optional) turns a feasible trial into a feasible
@@ -282,7 +281,7 @@ def bisect_scale(feasible: Callable[[float], Any], s_hi: float, lo: float | None
     else:
         hi = s_hi
     if lift is not None:      # a lifted layout touches the border: probe geometrically above it
-        step, fails = 2 * rel_tol, []
+        step, fails = 2 * _REL_TOL, []
         while lo * (1 + step) < hi:
             s = lo * (1 + step)
             p = feasible(s)
@@ -292,7 +291,7 @@ def bisect_scale(feasible: Callable[[float], Any], s_hi: float, lo: float | None
                 lo, lo_payload = up(s, p)
             step *= 4
         hi = min([f for f in fails if f > lo] + [hi])
-    while hi - lo > rel_tol * hi:
+    while hi - lo > _REL_TOL * hi:
         mid = 0.5 * (lo + hi)
         p = feasible(mid)
         if p is not None:
@@ -314,21 +313,19 @@ def _upper_scale(wh, pad):
     return float(min(s_area, s_side))
 
 
-def _pack_boxes(wh, pad, packers, rel_tol=_REL_TOL, start=None):
+def _pack_boxes(wh, pad, packers):
     """Largest common scale at which boxes ``s*wh + pad`` pack into the unit square, and where.
 
-    ``packers`` are tried in turn: the first is bisected fully (to ``rel_tol``), each later one only
-    has to beat the best scale so far by ``rel_tol`` (one trial packing, then a bisection upwards if it
-    does). Every packing that fits is scaled up about the origin until a box meets the border
-    (:func:`_lift_boxes`). ``start``: a layout ``(s, (pos, turned))`` of these boxes already found;
-    every packer then only has to beat it.
+    ``packers`` are tried in turn: the first is bisected fully, each later one only has to beat the
+    best scale so far (one trial packing, then a bisection upwards if it does). Every packing that
+    fits is scaled up about the origin until a box meets the border (:func:`_lift_boxes`).
     """
     s_hi = _upper_scale(wh, pad)
     if not np.isfinite(s_hi):
         s_hi = 1.0
     if s_hi <= 0:
         return None, None
-    best_s, best_p = (None, None) if start is None else start
+    best_s, best_p = None, None
 
     def lift(s, payload):
         return _lift_boxes(wh, pad, s, payload, s_hi)
@@ -336,14 +333,14 @@ def _pack_boxes(wh, pad, packers, rel_tol=_REL_TOL, start=None):
         def feasible(s, packer=packer):
             return packer(s * wh + pad)
         if best_s is None:
-            best_s, best_p = bisect_scale(feasible, s_hi, lift=lift, rel_tol=rel_tol)
+            best_s, best_p = bisect_scale(feasible, s_hi, lift=lift)
             continue
-        s_try = best_s * (1 + rel_tol)
+        s_try = best_s * (1 + _REL_TOL)
         if s_try > s_hi:
             break
         p = feasible(s_try)
         if p is not None:
-            best_s, best_p = bisect_scale(feasible, s_hi, *lift(s_try, p), lift=lift, rel_tol=rel_tol)
+            best_s, best_p = bisect_scale(feasible, s_hi, *lift(s_try, p), lift=lift)
     return best_s, best_p
 
 
@@ -361,6 +358,6 @@ def _lift_boxes(wh, pad, s, payload, s_hi):
     return k * s, (k * pos, turned)
 
 
-def _own_packers(wh, allow_turn=True, rules=_RULES, orders=None):
-    """One packer per (placement rule, order) pair; ``orders``: how many of :func:`_orders` (all)."""
-    return [lambda sizes, o=o, r=r: _maxrects(sizes, o, r, allow_turn) for r in rules for o in _orders(wh)[:orders]]
+def _own_packers(wh, allow_turn=True, rules=_RULES):
+    """One packer per (placement rule, order) pair."""
+    return [lambda sizes, o=o, r=r: _maxrects(sizes, o, r, allow_turn) for r in rules for o in _orders(wh)]

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.atlas.maxrects import _REL_TOL, _RULES, _own_packers, _pack_boxes, chart_hulls, min_area_rects, rotation_2d
+from uvbake.atlas.maxrects import _RULES, _own_packers, _pack_boxes, chart_hulls, min_area_rects, rotation_2d
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import signed_areas
 
@@ -239,27 +239,15 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
     charts' min_area_rect when already known. A *placer* as :func:`pack_charts` takes one: (s,
     rotation, offset, placed UVs, measured gap in texels or None).
     """
+    pad = g / N + _EPS_PAD
     rects = min_area_rects(uvs) if rects is None else rects
-    s, payload = _box_search(len(uvs), N, g, rects, packers, rules)
-    return _boxes_placed(uvs, N, g, rects, s, payload)
-
-
-def _box_search(n, N, g, rects, packers=None, rules=_RULES, orders=None, rel_tol=_REL_TOL, start=None):
-    """place_boxes's search: the common scale and (positions, turned) of the padded boxes (maxrects's
-    _pack_boxes: ``orders`` orders of every rule, None: all; ``start``: a layout to beat)."""
     wh = np.array([[w, h] for _, w, h in rects])
     if packers is None:
-        packers = _own_packers(wh, rules=rules, orders=orders)
-    s, payload = _pack_boxes(wh, g / N + _EPS_PAD, packers, rel_tol, start)
+        packers = _own_packers(wh, rules=rules)
+    s, payload = _pack_boxes(wh, pad, packers)
     if s is None:
-        raise InputError(f"gutter_px={g} is too large for {n} charts in a {N}-texel atlas: the gutters "
+        raise InputError(f"gutter_px={g} is too large for {len(uvs)} charts in a {N}-texel atlas: the gutters "
                          f"alone do not fit; reduce gutter_px or increase texture_size_px")
-    return s, payload
-
-
-def _boxes_placed(uvs, N, g, rects, s, payload) -> Placement:
-    """Each chart rotated to its box and moved into the box's place (a _box_search layout)."""
-    pad = g / N + _EPS_PAD
     pos, turned = payload
     rotation = np.zeros(len(uvs))
     offset = np.zeros((len(uvs), 2))
@@ -275,23 +263,11 @@ def _boxes_placed(uvs, N, g, rects, s, payload) -> Placement:
     return s, rotation, offset, out, None
 
 
-#: a quick box layout (BoxLayouts(quick=True)): every rule on the first order only, the scale to 1 %.
-#: On packsplit's trials of bumpy, halftunnel, sphere_cap and beetle it ranks the split rounds as the
-#: full search does (efficiencies within 0.1 point) at about half its MaxRects calls (docs/decisions/pack.md)
-_QUICK_ORDERS = 1
-_QUICK_TOL = 1e-2
-
-
 class BoxLayouts:
-    """MaxRects layouts (``method="maxrects"``) of changing sets of charts in a square atlas at a free
-    scale, for a caller that packs many sets sharing most charts (packsplit's split rounds): each
-    chart's minimum-area rectangle and area are computed once, kept by the identity of its UV and face
-    arrays (both held, so an id is never reused while kept).
-
-    ``layouts(uvs, faces, quick=True)`` is a quick layout for ranking sets (_QUICK_ORDERS, _QUICK_TOL);
-    ``layouts(uvs, faces)`` the full search of ``pack_charts(uvs, faces, method="maxrects")``, which for
-    the set last laid out quickly starts from that layout (every rule and order only has to beat it:
-    the same or a denser layout, with fewer trial packings).
+    """``pack_charts(uvs, faces, method="maxrects")`` for a caller that packs many sets of charts sharing
+    most charts (packsplit's split rounds): the same PackResult, each chart's minimum-area rectangle
+    and area computed once, kept by the identity of its UV and face arrays (both held, so an id is
+    never reused while kept). A square atlas at a free scale.
     """
 
     def __init__(self, texture_size_px: int = 1024, gutter_px: int | None = None, mip_levels: int | None = None):
@@ -300,11 +276,10 @@ class BoxLayouts:
             raise InputError(f"texture_size_px={texture_size_px!r}: box layouts are square; pass one size, e.g. 1024")
         self.N, self.g = W, _check_gutter(gutter_px, mip_levels, W, H)
         self._known: dict[tuple[int, int], tuple] = {}
-        self._quick: tuple = ((), None)         # (keys of the set last laid out quickly, its (s, payload))
 
     def _charts(self, uvs, faces):
-        """(uvs as float arrays, faces, rects (n,3), total area, keys), the rectangles and areas of unseen
-        charts found together."""
+        """(uvs as float arrays, faces, rects (n,3), total area), the rectangles and areas of unseen charts
+        found together."""
         keys = [(id(u), id(F)) for u, F in zip(uvs, faces)]
         new = [i for i, k in enumerate(keys) if k not in self._known]
         if new:
@@ -314,7 +289,7 @@ class BoxLayouts:
                 self._known[keys[i]] = (uvs[i], faces[i], u, F, r, float(np.abs(signed_areas(u, F)).sum()))
         got = [self._known[k] for k in keys]
         return [c[2] for c in got], [c[3] for c in got], np.array([c[4] for c in got]).reshape(-1, 3), \
-            sum(c[5] for c in got), tuple(keys)
+            sum(c[5] for c in got)
 
     def rect(self, uv: ArrayLike, F: ArrayLike) -> np.ndarray:
         """One chart's min_area_rect (theta, w, h)."""
@@ -322,22 +297,17 @@ class BoxLayouts:
 
     def fill(self, uvs: Sequence[ArrayLike], faces: Sequence[ArrayLike]) -> float:
         """The charts' area over their minimum-area rectangles' (see _SHAPES_ONLY_FILL)."""
-        _, _, rects, area, _ = self._charts(uvs, faces)
+        _, _, rects, area = self._charts(uvs, faces)
         box = float((rects[:, 1] * rects[:, 2]).sum())
         return area / box if box > 0 else 1.0
 
-    def __call__(self, uvs: Sequence[ArrayLike], faces: Sequence[ArrayLike], quick: bool = False) -> PackResult:
+    def __call__(self, uvs: Sequence[ArrayLike], faces: Sequence[ArrayLike]) -> PackResult:
         import time
 
         t0 = time.perf_counter()
-        us, _, rects, area, keys = self._charts(uvs, faces)
+        us, Fs, rects, area = self._charts(uvs, faces)
         N, g = self.N, self.g
-        if quick:
-            s, payload = _box_search(len(us), N, g, rects, orders=_QUICK_ORDERS, rel_tol=_QUICK_TOL)
-            self._quick = (keys, (s, payload))
-        else:
-            s, payload = _box_search(len(us), N, g, rects, start=self._quick[1] if self._quick[0] == keys else None)
-        s, rotation, offset, out, gap = _boxes_placed(us, N, g, rects, s, payload)
+        s, rotation, offset, out, gap = place_boxes(us, Fs, N, g, rects=rects)
         density = s * N
         return PackResult(uv=out, scale=float(density / N), texel_size_world=float(1.0 / density), rotation=rotation,
                           offset=offset, efficiency=float(density * density * area / (N * N)), texture_size_px=N,

@@ -42,57 +42,35 @@ IMBALANCE = 2.0
 
 
 def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
-                      pack: Callable[..., Any], *, boxes: Any = None,
+                      pack: Callable[[list, list], Any], *, boxes: Any = None,
                       max_charts: int | None = None) -> tuple[list[Chart], list[ParamResult], Any, list[dict]]:
-    """Charts (some split), their results, the packing of them (a PackResult) and one record per kept
-    split (chart, parts, seam length, efficiency before and after).
+    """Charts (some split), their results, the packing of them (``pack(uvs, Fs)``, a PackResult) and
+    one record per kept split (chart, parts, seam length, efficiency before and after).
 
-    ``pack(uvs, Fs)`` packs a set of charts. ``boxes`` (a :class:`uvbake.atlas.pack.BoxLayouts`, the fast
-    rectangle packer; None: ``pack`` makes every layout) makes the trial layouts that judge each round
-    (its quick ones) and, when the split charts' boxes fill enough for boxes to compete, their final
-    layout; else the split charts are packed by ``pack`` too (:func:`_final_layout`). The splits are
-    kept when the final layout beats the first by MIN_GAIN: at most two calls of ``pack``."""
+    Each round's split is judged by a trial layout of ``boxes`` (a :class:`uvbake.atlas.pack.BoxLayouts`,
+    the fast rectangle packer, which finds each chart's rectangle once; None: ``pack`` judges); the
+    split charts are then packed by ``pack`` too unless their boxes fill enough for boxes to compete
+    (:func:`_boxes_suffice`), and the denser of that and the last trial layout is kept when it beats
+    the first layout by MIN_GAIN (else the splits are dropped): at most two calls of ``pack``."""
+    trial_pack = pack if boxes is None else boxes
     charts, results = list(charts), list(results)
     packed = pack([r.uv for r in results], [c.F for c in charts])
     if packed.efficiency >= BELOW_EFFICIENCY or _largest(charts, results) is None:
         return charts, results, packed, []
-
-    def trial(uvs, Fs):
-        return pack(uvs, Fs) if boxes is None else boxes(uvs, Fs, quick=True)
-    cur = trial([r.uv for r in results], [c.F for c in charts]) if boxes is not None else packed
-    cur_c, cur_r, cur, records = _rounds(charts, results, cur, trial, max_charts,
+    cur = trial_pack([r.uv for r in results], [c.F for c in charts]) if boxes is not None else packed
+    cur_c, cur_r, cur, records = _rounds(charts, results, cur, trial_pack, max_charts,
                                          None if boxes is None else boxes.rect)
     if not records:
         return charts, results, packed, []
-    final = cur if boxes is None else _final_layout(cur_c, cur_r, cur, packed, pack, boxes)
-    if final is None or final.efficiency < packed.efficiency + MIN_GAIN:
+    final = cur                                          # the trial layout is a layout too: the denser is kept
+    if boxes is not None and not _boxes_suffice(cur_c, cur_r, boxes):
+        full = pack([r.uv for r in cur_r], [c.F for c in cur_c])
+        final = full if full.efficiency >= cur.efficiency else cur
+    if final.efficiency < packed.efficiency + MIN_GAIN:
         return charts, results, packed, []
     for rec in records:
         rec.update(efficiency_before=float(packed.efficiency), efficiency_after=float(final.efficiency))
     return cur_c, cur_r, final, records
-
-
-def _final_layout(charts, results, trial, packed, pack, boxes):
-    """The split charts' layout, or None when none can beat the first layout ``packed`` by MIN_GAIN.
-
-    Charts filling their minimum-area boxes to at least the packer's own _SHAPES_ONLY_FILL (0.7):
-    their full rectangle layout (there it won anyway: bumpy's pieces, fill 0.71: shapes 62.4 against
-    boxes 64.5 %; sphere_cap's, 0.75: level); below it shapes win (beetle's, 0.57: 52.7 against
-    47.6 %), so ``pack`` runs, and the denser of its packing and the rectangles is kept. A full
-    rectangle layout replaces the quick trial layout only when at least as dense."""
-    from uvbake.atlas.pack import _SHAPES_ONLY_FILL
-
-    uvs, Fs = [r.uv for r in results], [c.F for c in charts]
-
-    def rectangles():
-        full = boxes(uvs, Fs)
-        return full if full.efficiency >= trial.efficiency else trial
-    if boxes.fill(uvs, Fs) >= _SHAPES_ONLY_FILL:
-        return rectangles()
-    full = pack(uvs, Fs)
-    if full.efficiency >= trial.efficiency:
-        return full
-    return rectangles() if trial.efficiency >= packed.efficiency + MIN_GAIN else None
 
 
 def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
@@ -121,6 +99,16 @@ def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
         if trial.efficiency >= best[2].efficiency + TRIAL_GAIN:
             best = (charts, results, trial, len(records))
     return best[0], best[1], best[2], records[:best[3]]
+
+
+def _boxes_suffice(charts, results, boxes):
+    """Whether the charts' minimum-area rectangles fill at least the share above which the packer
+    lets boxes compete with shapes: there the trial (rectangle) layout is kept without packing the
+    shapes (bumpy's pieces, fill 0.71: shapes 62.4 against boxes 64.5 %; sphere_cap's, 0.75: level),
+    below it shapes win (beetle's, 0.57: 52.7 against 47.6 %)."""
+    from uvbake.atlas.pack import _SHAPES_ONLY_FILL
+
+    return boxes.fill([r.uv for r in results], [c.F for c in charts]) >= _SHAPES_ONLY_FILL
 
 
 def _largest(charts, results):

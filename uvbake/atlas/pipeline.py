@@ -423,8 +423,8 @@ def _pack_and_validate(run, pack_options):
         from uvbake.atlas.pack import BoxLayouts
         from uvbake.atlas.packsplit import split_for_packing
 
-        # splits are judged on the fast rectangle packer, which places at a scale of its own: with a fixed
-        # texel density, trials are full packings
+        # splits are judged on the fast rectangle packer (each chart's rectangle found once), which places at
+        # a scale of its own: with a fixed texel density, trials are full packings
         boxes = None if pack_options.get("texel_density") is not None else BoxLayouts(
             pack_options["texture_size_px"], pack_options["gutter_px"], pack_options["mip_levels"])
         run.charts, run.results, packed, split = split_for_packing(run.charts, run.results, pack, boxes=boxes,
