@@ -14,7 +14,7 @@ from uvbake.atlas.maxrects import _RULES, _maxrects, min_area_rect
 from uvbake.atlas.pack import BoxLayouts, pack_charts
 
 from meshgen import cone, cut_cylinder, torus
-from test_pack import chart_set, min_gap
+from test_pack import chart_set, grid_chart, min_gap
 
 N, G = 256, 3
 
@@ -160,3 +160,38 @@ def test_packing_splits_keep_what_they_kept_with_maxrects_packings_as_trials(sha
     assert len(out[0][0]) == len(out[1][0]) > len(res.charts)
     assert out[0][2].efficiency == out[1][2].efficiency and out[0][2].method == out[1][2].method
     assert all(np.array_equal(a, b) for a, b in zip(out[0][2].uv, out[1][2].uv))
+
+
+class _Chart:
+    def __init__(self, F):
+        self.F = F
+
+
+class _Result:
+    def __init__(self, uv):
+        self.uv = uv
+
+
+def test_an_atlas_of_many_charts_is_packed_once_and_not_split(monkeypatch):
+    """A long strip holding most of the area among MAX_ATLAS_CHARTS other charts: the atlas packs
+    sparsely and the strip holds more than MIN_SHARE, yet one more chart makes it too many to split."""
+    strip, sF = grid_chart(40, 2, 20.0, 1.0)
+    uvs, faces = [strip], [sF]
+    for k in range(packsplit.MAX_ATLAS_CHARTS):
+        uv, F = grid_chart(2, 2, 0.5, 0.5, shift=(k, 3.0))
+        uvs.append(uv)
+        faces.append(F)
+    calls = []
+
+    def pack(u, f):
+        calls.append(len(u))
+        return pack_charts(u, f)
+    charts, results = [_Chart(F) for F in faces], [_Result(u) for u in uvs]
+    assert packsplit._largest(charts, results) == 0
+    out = packsplit.split_for_packing(charts, results, pack, boxes=BoxLayouts())
+    assert out[2].efficiency < packsplit.BELOW_EFFICIENCY and calls == [len(uvs)] and out[3] == []
+    # the same atlas without one of the small charts gets its strip cut (a cut that gives no pieces here)
+    cuts = []
+    monkeypatch.setattr(packsplit, "split_straight", lambda c, r, theta=None: cuts.append(len(c.F)))
+    out = packsplit.split_for_packing(charts[:-1], results[:-1], pack, boxes=BoxLayouts())
+    assert cuts == [len(sF)] and out[3] == []
