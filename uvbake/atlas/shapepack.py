@@ -248,12 +248,16 @@ class _Atlas:
         add[:, self.w - self.m:] = True
         tmpl = _free_runs(add[:1])
         run = np.repeat(tmpl, rows, axis=0)
-        if len(self.blocked) == 0:                 # the bottom margin
+        rowmax = np.full(rows, tmpl.max(), _RUN)   # every new row is the template
+        if len(self.blocked) == 0:                 # the bottom margin; the first rows need no copy
             add[:self.m] = True
             run[:self.m] = 0
+            rowmax[:self.m] = 0
+            self.blocked, self.run, self.rowmax = add, run, rowmax
+            return
         self.blocked = np.vstack([self.blocked, add])
         self.run = np.vstack([self.run, run])
-        self.rowmax = np.concatenate([self.rowmax, run.max(axis=1)])
+        self.rowmax = np.concatenate([self.rowmax, rowmax])
 
     def find(self, runs, h, w, top_bound=None):
         """Lowest, then leftmost, (x, y) where a footprint with ``runs`` fits; None if nowhere, or if its
