@@ -10,7 +10,7 @@ import pytest
 import uvbake
 import uvbake.atlas.pack as pack_module
 from uvbake.atlas import packsplit
-from uvbake.atlas.maxrects import _RULES, _maxrects, min_area_rect
+from uvbake.atlas.maxrects import _RULES, _maxrects, _scores, min_area_rect
 from uvbake.atlas.pack import BoxLayouts, pack_charts
 
 from meshgen import cone, cut_cylinder, torus
@@ -21,7 +21,8 @@ N, G = 256, 3
 
 def _reference_maxrects(sizes, order, rule, allow_turn=True):
     """MaxRects as first written (one orientation at a time, every free rectangle tested for containment
-    in every other after each placement): the reference the faster update must match exactly."""
+    in every other after each placement; the same placement scores): the reference the faster update
+    must match exactly."""
     free = np.array([[0.0, 0.0, 1.0, 1.0]])
     placed = np.empty((0, 4))
     pos, turned = np.zeros((len(sizes), 2)), np.zeros(len(sizes), bool)
@@ -34,27 +35,7 @@ def _reference_maxrects(sizes, order, rule, allow_turn=True):
             idx = np.flatnonzero((fw >= w) & (fh >= h))
             if not len(idx):
                 continue
-            lw, lh = fw[idx] - w, fh[idx] - h
-            if rule == "bssf":
-                s1, s2 = np.minimum(lw, lh), np.maximum(lw, lh)
-            elif rule == "blsf":
-                s1, s2 = np.maximum(lw, lh), np.minimum(lw, lh)
-            elif rule == "baf":
-                s1, s2 = fw[idx] * fh[idx] - w * h, np.minimum(lw, lh)
-            elif rule == "bl":
-                s1, s2 = free[idx, 1] + h, free[idx, 0]
-            else:
-                x0, y0 = free[idx, 0], free[idx, 1]
-                x1, y1 = x0 + w, y0 + h
-                contact = ((x0 == 0) + (x1 >= 1)) * h + ((y0 == 0) + (y1 >= 1)) * w
-                if len(placed):                  # summed over placed boxes as numpy does (the same roundings)
-                    px0, py0, px1, py1 = (placed[:, j][None, :] for j in range(4))
-                    ov_y = np.clip(np.minimum(y1[:, None], py1) - np.maximum(y0[:, None], py0), 0, None)
-                    ov_x = np.clip(np.minimum(x1[:, None], px1) - np.maximum(x0[:, None], px0), 0, None)
-                    touch_x = (px1 == x0[:, None]) | (px0 == x1[:, None])
-                    touch_y = (py1 == y0[:, None]) | (py0 == y1[:, None])
-                    contact = contact + (touch_x * ov_y).sum(1) + (touch_y * ov_x).sum(1)
-                s1, s2 = -contact, free[idx, 1]
+            s1, s2 = _scores(rule, free, idx, w, h, placed)
             j = np.lexsort((s2, s1))[0]
             if best is None or (s1[j], s2[j]) < best[:2]:
                 best = (s1[j], s2[j], idx[j], t, w, h)

@@ -159,6 +159,33 @@ def _caliper_extents(H):
 _RULES = ("bssf", "blsf", "baf", "bl", "cp")
 
 
+def _scores(rule, free, idx, w, h, placed):
+    """MaxRects's placement scores (primary, secondary; the least wins) of ``w x h`` boxes at the lower
+    left corners of the free rectangles ``free[idx]``, boxes ``placed`` (k,4) already there."""
+    fw, fh = free[idx, 2] - free[idx, 0], free[idx, 3] - free[idx, 1]
+    lw, lh = fw - w, fh - h
+    if rule == "bssf":
+        return np.minimum(lw, lh), np.maximum(lw, lh)
+    if rule == "blsf":
+        return np.maximum(lw, lh), np.minimum(lw, lh)
+    if rule == "baf":
+        return fw * fh - w * h, np.minimum(lw, lh)
+    if rule == "bl":
+        return free[idx, 1] + h, free[idx, 0]
+    # contact point: maximise the perimeter touching the border and placed boxes
+    x0, y0 = free[idx, 0], free[idx, 1]
+    x1, y1 = x0 + w, y0 + h
+    contact = ((x0 == 0) + (x1 >= 1)) * h + ((y0 == 0) + (y1 >= 1)) * w
+    if len(placed):
+        px0, py0, px1, py1 = (placed[:, j][None, :] for j in range(4))
+        ov_y = np.clip(np.minimum(y1[:, None], py1) - np.maximum(y0[:, None], py0), 0, None)
+        ov_x = np.clip(np.minimum(x1[:, None], px1) - np.maximum(x0[:, None], px0), 0, None)
+        touch_x = (px1 == x0[:, None]) | (px0 == x1[:, None])
+        touch_y = (py1 == y0[:, None]) | (py0 == y1[:, None])
+        contact = contact + (touch_x * ov_y).sum(1) + (touch_y * ov_x).sum(1)
+    return -contact, free[idx, 1]
+
+
 def _maxrects(sizes, order, rule, allow_turn=True):
     """Pack rectangles ``sizes (n,2)`` in the unit square in ``order`` with placement ``rule``.
 
@@ -183,28 +210,7 @@ def _maxrects(sizes, order, rule, allow_turn=True):
         t_idx, idx = np.nonzero(ok)                 # row-major: orientation, then free rectangle
         if not len(idx):
             return None
-        w, h = W[t_idx], H[t_idx]
-        lw, lh = fw[idx] - w, fh[idx] - h
-        if rule == "bssf":
-            s1, s2 = np.minimum(lw, lh), np.maximum(lw, lh)
-        elif rule == "blsf":
-            s1, s2 = np.maximum(lw, lh), np.minimum(lw, lh)
-        elif rule == "baf":
-            s1, s2 = fw[idx] * fh[idx] - w * h, np.minimum(lw, lh)
-        elif rule == "bl":
-            s1, s2 = free[idx, 1] + h, free[idx, 0]
-        else:  # contact point: maximise the perimeter touching the border and placed boxes
-            x0, y0 = free[idx, 0], free[idx, 1]
-            x1, y1 = x0 + w, y0 + h
-            contact = ((x0 == 0) + (x1 >= 1)) * h + ((y0 == 0) + (y1 >= 1)) * w
-            if k:
-                px0, py0, px1, py1 = (placed[:k, j][None, :] for j in range(4))
-                ov_y = np.clip(np.minimum(y1[:, None], py1) - np.maximum(y0[:, None], py0), 0, None)
-                ov_x = np.clip(np.minimum(x1[:, None], px1) - np.maximum(x0[:, None], px0), 0, None)
-                touch_x = (px1 == x0[:, None]) | (px0 == x1[:, None])
-                touch_y = (py1 == y0[:, None]) | (py0 == y1[:, None])
-                contact = contact + (touch_x * ov_y).sum(1) + (touch_y * ov_x).sum(1)
-            s1, s2 = -contact, free[idx, 1]
+        s1, s2 = _scores(rule, free, idx, W[t_idx], H[t_idx], placed[:k])
         j = np.lexsort((s2, s1))[0]                 # stable: the first of equal scores
         f, t = idx[j], bool(t_idx[j])
         x0, y0 = free[f, 0], free[f, 1]
