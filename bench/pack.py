@@ -166,9 +166,9 @@ def commands(log=sys.stdout, only=None):
         return run
 
     # the pipeline imports these at call time; pack_charts and BoxLayouts never call each other
-    orig = pack_module.pack_charts, pack_module.BoxLayouts.__call__, split_module.split_for_packing
+    orig = pack_module.pack_charts, split_module.BoxLayouts.__call__, split_module.split_for_packing
     pack_module.pack_charts = timed(orig[0], "pack")
-    pack_module.BoxLayouts.__call__ = timed(orig[1], "pack")
+    split_module.BoxLayouts.__call__ = timed(orig[1], "pack")
     split_module.split_for_packing = timed(orig[2], "stage")
     uvbake.unwrap(str(mesh_paths()[-1]))             # imports and caches warmed up once
     print("| mesh | charts | packing | method | texel density (px/unit) | pack (s) | command (s) | share "
@@ -187,7 +187,7 @@ def commands(log=sys.stdout, only=None):
               f"| {a['texel_density']:.4g} | {t['pack_s']:.2f} | {t['total_s']:.2f} "
               f"| {100 * t['pack_s'] / t['total_s']:.0f} % | {cpu['pack']:.3f} | {stage:.3f} | {c:.2f} "
               f"| {100 * cpu['pack'] / c:.0f} % | {100 * stage / c:.0f} % |", file=log, flush=True)
-    pack_module.pack_charts, pack_module.BoxLayouts.__call__, split_module.split_for_packing = orig
+    pack_module.pack_charts, split_module.BoxLayouts.__call__, split_module.split_for_packing = orig
 
 
 def main(argv=None):

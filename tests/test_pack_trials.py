@@ -11,7 +11,8 @@ import uvbake
 import uvbake.atlas.pack as pack_module
 from uvbake.atlas import packsplit
 from uvbake.atlas.maxrects import _RULES, _maxrects, _scores, min_area_rect
-from uvbake.atlas.pack import BoxLayouts, pack_charts
+from uvbake.atlas.pack import pack_charts
+from uvbake.atlas.packsplit import BoxLayouts
 
 from meshgen import cone, cut_cylinder, torus
 from test_pack import chart_set, grid_chart, min_gap
@@ -103,7 +104,7 @@ def test_box_layouts_find_each_charts_rectangle_once(monkeypatch):
     uvs, faces = _charts(4)
     seen = []
     real = pack_module.min_area_rects
-    monkeypatch.setattr(pack_module, "min_area_rects", lambda Ps, *a: seen.append(len(Ps)) or real(Ps, *a))
+    monkeypatch.setattr(packsplit, "min_area_rects", lambda Ps, *a: seen.append(len(Ps)) or real(Ps, *a))
     layouts = BoxLayouts(N, G)
     layouts(uvs[:4], faces[:4])
     layouts(uvs, faces)

@@ -263,58 +263,6 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
     return s, rotation, offset, out, None
 
 
-class BoxLayouts:
-    """``pack_charts(uvs, faces, method="maxrects")`` for a caller that packs many sets of charts sharing
-    most charts (packsplit's split rounds): the same PackResult, each chart's minimum-area rectangle
-    and area computed once, kept by the identity of its UV and face arrays (both held, so an id is
-    never reused while kept). A square atlas at a free scale.
-    """
-
-    def __init__(self, texture_size_px: int = 1024, gutter_px: int | None = None, mip_levels: int | None = None):
-        W, H = _check_size(texture_size_px, None)
-        if W != H:
-            raise InputError(f"texture_size_px={texture_size_px!r}: box layouts are square; pass one size, e.g. 1024")
-        self.N, self.g = W, _check_gutter(gutter_px, mip_levels, W, H)
-        self._known: dict[tuple[int, int], tuple] = {}
-
-    def _charts(self, uvs, faces):
-        """(uvs as float arrays, faces, rects (n,3), total area), the rectangles and areas of unseen charts
-        found together."""
-        keys = [(id(u), id(F)) for u, F in zip(uvs, faces)]
-        new = [i for i, k in enumerate(keys) if k not in self._known]
-        if new:
-            us = [np.asarray(uvs[i], dtype=np.float64) for i in new]
-            Fs = [np.asarray(faces[i], dtype=np.int64) for i in new]
-            for i, u, F, r in zip(new, us, Fs, min_area_rects(us)):
-                self._known[keys[i]] = (uvs[i], faces[i], u, F, r, float(np.abs(signed_areas(u, F)).sum()))
-        got = [self._known[k] for k in keys]
-        return [c[2] for c in got], [c[3] for c in got], np.array([c[4] for c in got]).reshape(-1, 3), \
-            sum(c[5] for c in got)
-
-    def rect(self, uv: ArrayLike, F: ArrayLike) -> np.ndarray:
-        """One chart's min_area_rect (theta, w, h)."""
-        return self._charts([uv], [F])[2][0]
-
-    def fill(self, uvs: Sequence[ArrayLike], faces: Sequence[ArrayLike]) -> float:
-        """The charts' area over their minimum-area rectangles' (see _SHAPES_ONLY_FILL)."""
-        _, _, rects, area = self._charts(uvs, faces)
-        box = float((rects[:, 1] * rects[:, 2]).sum())
-        return area / box if box > 0 else 1.0
-
-    def __call__(self, uvs: Sequence[ArrayLike], faces: Sequence[ArrayLike]) -> PackResult:
-        import time
-
-        t0 = time.perf_counter()
-        us, Fs, rects, area = self._charts(uvs, faces)
-        N, g = self.N, self.g
-        s, rotation, offset, out, gap = place_boxes(us, Fs, N, g, rects=rects)
-        density = s * N
-        return PackResult(uv=out, scale=float(density / N), texel_size_world=float(1.0 / density), rotation=rotation,
-                          offset=offset, efficiency=float(density * density * area / (N * N)), texture_size_px=N,
-                          gutter_px=g, method="maxrects", time_s=time.perf_counter() - t0, min_gap_px=gap,
-                          width_px=N, height_px=N, texel_density=float(density))
-
-
 # ------------------------------------------------------------------------------------------- API
 
 def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike], *,

@@ -420,8 +420,7 @@ def _pack_and_validate(run, pack_options):
         return pack_charts(uvs, Fs, **pack_options)
 
     if run.opts["guarantee"] and run.opts["pack_splits"]:
-        from uvbake.atlas.pack import BoxLayouts
-        from uvbake.atlas.packsplit import split_for_packing
+        from uvbake.atlas.packsplit import BoxLayouts, split_for_packing
 
         # splits are judged on the fast rectangle packer (each chart's rectangle found once), which places at
         # a scale of its own: with a fixed texel density, trials are full packings
