@@ -110,9 +110,9 @@ def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
 
 
 class BoxLayouts:
-    """``uvbake.atlas.pack.pack_charts(uvs, faces, method="maxrects")`` for a caller that packs many sets of charts sharing
-    most charts (packsplit's split rounds): the same PackResult, each chart's minimum-area rectangle
-    and area computed once, kept by the identity of its UV and face arrays (both held, so an id is
+    """``uvbake.atlas.pack.pack_charts(uvs, faces, method="maxrects")`` for a caller that packs many
+    sets sharing most charts (the split rounds): the same PackResult, each chart's minimum-area
+    rectangle and area computed once, kept by the identity of its UV and face arrays (both held, so an id is
     never reused while kept; the arrays must not be changed in place meanwhile). A square atlas at a
     free scale.
     """
