@@ -112,9 +112,9 @@ def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
 class BoxLayouts:
     """``uvbake.atlas.pack.pack_charts(uvs, faces, method="maxrects")`` for a caller that packs many
     sets sharing most charts (the split rounds): the same PackResult, each chart's minimum-area
-    rectangle and area computed once, kept by the identity of its UV and face arrays (both held, so an id is
-    never reused while kept; the arrays must not be changed in place meanwhile). A square atlas at a
-    free scale.
+    rectangle and area computed once, kept by the identity of its UV and face arrays (both held, so
+    an id is never reused while kept; the arrays must not be changed in place meanwhile). A square
+    atlas at a free scale.
     """
 
     def __init__(self, texture_size_px: int = 1024, gutter_px: int | None = None, mip_levels: int | None = None):
