@@ -67,7 +67,10 @@ def disk_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None, *,
     from uvbake.mesh.cut import cut_to_disks, seam_length
 
     out, cuts = [], []
-    for c in split_charts(V, F, labels, check=False):
+    pieces = split_charts(V, F, labels, check=False)
+    if auto_cut:
+        pieces = [p for c in pieces for p in _crease_parts(c)]
+    for c in pieces:
         try:
             check_chart(c.V, c.F, name=c.name)
             out.append(c)
@@ -84,6 +87,35 @@ def disk_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None, *,
         cuts.append(dict(chart=c.name, parts=len(parts), seam_length=seam_length(c.V, c.F, sub)))
         out.extend(parts)
     return out, cuts
+
+
+#: Edges whose triangles' normals are at least this far apart split a piece into charts before anything
+#: else (a box's faces, a machined part's patches); the charting merges them back where that stays
+#: within the budget.
+CREASE_SPLIT = np.radians(60.0)
+
+
+def _crease_parts(chart: Chart) -> list[Chart]:
+    """``chart`` split along its sharp creases (CREASE_SPLIT), parts below SLIVER_SHARE of its area or
+    MIN_PIECE_FACES given to a neighbour; [chart] when it has no crease that separates anything."""
+    F, n = chart.F, len(chart.V)
+    if len(F) < 2 * MIN_PIECE_FACES:
+        return [chart]
+    fi, fj, _ = face_adjacency(F, n)
+    X = chart.V[F]
+    nrm = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+    area = 0.5 * np.linalg.norm(nrm, axis=1)
+    nrm /= np.maximum(2.0 * area, 1e-300)[:, None]
+    smooth = np.einsum("ij,ij->i", nrm[fi], nrm[fj]) > np.cos(CREASE_SPLIT)
+    m = len(F)
+    nc, comp = connected_components(sp.coo_matrix((np.ones(int(smooth.sum())), (fi[smooth], fj[smooth])),
+                                                  shape=(m, m)), directed=False)
+    if nc == 1:
+        return [chart]
+    lab = _absorb_slivers(F, n, comp, area, SLIVER_SHARE)
+    if len(np.unique(lab)) < 2:
+        return [chart]
+    return sub_charts(chart, lab)
 
 
 def sub_charts(chart: Chart, sub_labels: ArrayLike) -> list[Chart]:
