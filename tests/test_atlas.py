@@ -332,3 +332,14 @@ def test_sharp_creases_split_first_and_merge_back_into_exact_unfoldings():
     Vp, Fp = cut_cylinder()
     smooth = Chart(Vp, Fp, np.arange(len(Vp)), np.arange(len(Fp)), -1, "cylinder")
     assert _crease_parts(smooth) == [smooth]
+
+
+def test_crease_split_never_goes_past_max_charts():
+    import trimesh
+
+    box = trimesh.creation.box(extents=(1.0, 1.3, 0.8)).subdivide().subdivide()
+    V, F = np.asarray(box.vertices, np.float64), np.asarray(box.faces, np.int64)
+    charts, _, _ = make_charts(V, F, max_charts=4)
+    assert len(charts) <= 4                                    # 6 faces would be 6 parts: not split by creases
+    charts, _, _ = make_charts(V, F, max_charts=6)
+    assert 1 <= len(charts) <= 6

@@ -60,16 +60,21 @@ def check_budget(max_stretch: float, max_charts: int | None) -> tuple[float, int
 
 
 def disk_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None, *,
-                auto_cut: bool = True) -> tuple[list[Chart], list[dict]]:
-    """Charts from labels and edge-connected pieces; closed pieces and handles cut into disks.
+                auto_cut: bool = True, max_charts: int | None = None,
+                creases: bool = False) -> tuple[list[Chart], list[dict]]:
+    """Charts from labels and edge-connected pieces, with ``creases`` split along sharp creases (when
+    that makes at most ``max_charts``: the budget's charting, which merges them back); closed pieces
+    and handles cut into disks.
 
     Returns (charts, cuts): cuts lists one dict per piece that had to be cut."""
     from uvbake.mesh.cut import cut_to_disks, seam_length
 
     out, cuts = [], []
     pieces = split_charts(V, F, labels, check=False)
-    if auto_cut:
-        pieces = [p for c in pieces for p in _crease_parts(c)]
+    if auto_cut and creases:
+        creased = [p for c in pieces for p in _crease_parts(c)]
+        # the creases are a preference, the chart budget a promise: no crease split past max_charts
+        pieces = creased if max_charts is None or len(creased) <= max_charts else pieces
     for c in pieces:
         try:
             check_chart(c.V, c.F, name=c.name)
@@ -470,7 +475,7 @@ def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
     """
     max_stretch, max_charts = check_budget(max_stretch, max_charts)
     note = progress or (lambda stage, done, total: None)
-    disks, cuts = disk_charts(V, F, labels, auto_cut=auto_cut)
+    disks, cuts = disk_charts(V, F, labels, auto_cut=auto_cut, max_charts=max_charts, creases=True)
     st = _Charting(float(np.log(max_stretch)), max_charts, MAX_SOLVES_PER_CHART * len(disks),
                    [(c, None) for c in disks], _frames(np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)))
     checked, rounds = 0, 0
