@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from uvbake.errors import ChartError, InputError
+from uvbake.mesh.arrays import triangle_areas, unit_normals
 from uvbake.mesh.charts import Chart, check_chart, split_charts
 from uvbake.mesh.topology import face_adjacency
 
@@ -107,17 +108,14 @@ def _crease_parts(chart: Chart) -> list[Chart]:
     if len(F) < 2 * MIN_PIECE_FACES:
         return [chart]
     fi, fj, _ = face_adjacency(F, n)
-    X = chart.V[F]
-    nrm = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
-    area = 0.5 * np.linalg.norm(nrm, axis=1)
-    nrm /= np.maximum(2.0 * area, 1e-300)[:, None]
+    nrm = unit_normals(chart.V, F)
     smooth = np.einsum("ij,ij->i", nrm[fi], nrm[fj]) > np.cos(CREASE_SPLIT)
     m = len(F)
     nc, comp = connected_components(sp.coo_matrix((np.ones(int(smooth.sum())), (fi[smooth], fj[smooth])),
                                                   shape=(m, m)), directed=False)
     if nc == 1:
         return [chart]
-    lab = _absorb_slivers(F, n, comp, area, SLIVER_SHARE)
+    lab = _absorb_slivers(F, n, comp, triangle_areas(chart.V, F), SLIVER_SHARE)
     if len(np.unique(lab)) < 2:
         return [chart]
     return sub_charts(chart, lab)

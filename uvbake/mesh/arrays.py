@@ -65,6 +65,13 @@ def triangle_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
 
 
+def unit_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m,3) unit normal of every triangle (right-handed in its corner order; 0 for a degenerate one)."""
+    X = V[F]
+    nrm = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+    return nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+
+
 def signed_areas(uv: np.ndarray, F: np.ndarray | None = None) -> np.ndarray:
     """Signed areas (m,) of the triangles F of a UV map uv (n,2), or of per-corner UVs (m,3,2) when F is
     None: positive = counter-clockwise."""

@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from uvbake.errors import ChartError, InputError
-from uvbake.mesh.arrays import _list, check_arrays, triangle_areas
+from uvbake.mesh.arrays import _list, check_arrays, triangle_areas, unit_normals
 from uvbake.mesh.topology import face_adjacency, topology
 
 __all__ = ["bisect", "split_where", "cut_to_disks", "seam_length"]
@@ -88,9 +88,7 @@ def seam_costs(V: np.ndarray, F: np.ndarray, fi: np.ndarray, fj: np.ndarray, ea:
     texture seam shows least. Triangles must be consistently oriented (outward normals on a closed
     surface: a valley is an edge where the neighbour rises above the triangle's plane)."""
     length = _edge_lengths(V, ea, eb)
-    X = V[F]
-    nrm = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    nrm = unit_normals(V, F)
     cos = np.clip(np.einsum("ij,ij->i", nrm[fi], nrm[fj]), -1.0, 1.0)
     sharp = np.clip((np.arccos(cos) - CREASE_START) / (CREASE_ANGLE - CREASE_START), 0.0, 1.0)
     far = F[fj].sum(axis=1) - ea - eb                   # fj's corner off the shared edge
