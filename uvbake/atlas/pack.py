@@ -338,11 +338,19 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the largest chart "
                          f"would be under one texel; reduce gutter_px or increase texture_size_px")
     area = sum(np.abs(signed_areas(uv, F)).sum() for uv, F in zip(uvs, faces))
-    eff = float(density * density * area / (W * H))
+    return packed_result(out, rotation, offset, gap, density, area, W, H, g, used, t0)
+
+
+def packed_result(out: list[np.ndarray], rotation: np.ndarray, offset: np.ndarray, gap: float | None, density: float,
+                  area: float, W: int, H: int, g: int, method: str, t0: float) -> PackResult:
+    """The PackResult of a layout at ``density`` texels per unit holding charts of UV ``area``
+    (efficiency: their texels over the W x H atlas's), timed from ``t0`` (time.perf_counter)."""
+    import time
+
     return PackResult(uv=out, scale=float(density / W), texel_size_world=float(1.0 / density), rotation=rotation,
-                      offset=offset, efficiency=eff, texture_size_px=W, gutter_px=g, method=used,
-                      time_s=time.perf_counter() - t0, min_gap_px=gap, width_px=W, height_px=H,
-                      texel_density=float(density))
+                      offset=offset, efficiency=float(density * density * area / (W * H)), texture_size_px=W,
+                      gutter_px=g, method=method, time_s=time.perf_counter() - t0, min_gap_px=gap, width_px=W,
+                      height_px=H, texel_density=float(density))
 
 
 # "auto" on a square atlas at a free scale picks by how full the charts' minimum-area boxes are (chart

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.atlas.maxrects import min_area_rects
-from uvbake.atlas.pack import _SHAPES_ONLY_FILL, PackResult, _check_gutter, _check_size, place_boxes
+from uvbake.atlas.pack import _SHAPES_ONLY_FILL, PackResult, _check_gutter, _check_size, packed_result, place_boxes
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.solvers.result import ParamResult
@@ -155,11 +155,7 @@ class BoxLayouts:
         us, Fs, rects, area = self._charts(uvs, faces)
         N, g = self.N, self.g
         s, rotation, offset, out, gap = place_boxes(us, Fs, N, g, rects=rects)
-        density = s * N
-        return PackResult(uv=out, scale=float(density / N), texel_size_world=float(1.0 / density), rotation=rotation,
-                          offset=offset, efficiency=float(density * density * area / (N * N)), texture_size_px=N,
-                          gutter_px=g, method="maxrects", time_s=time.perf_counter() - t0, min_gap_px=gap,
-                          width_px=N, height_px=N, texel_density=float(density))
+        return packed_result(out, rotation, offset, gap, s * N, area, N, N, g, "maxrects", t0)
 
 
 def _boxes_suffice(charts, results, boxes):
