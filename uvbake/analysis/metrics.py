@@ -217,8 +217,7 @@ def seam_placement(V: ArrayLike, F: np.ndarray, uv: ArrayLike, *, crease_deg: fl
     ``crease_deg`` apart) and on valleys (concave edges), and their cost
     (:func:`uvbake.mesh.cut.seam_costs`: length discounted on creases, most on valleys) over length.
     ``F`` consistently oriented, as uvbake's repair leaves it."""
-    from uvbake.mesh.arrays import unit_normals
-    from uvbake.mesh.cut import seam_costs
+    from uvbake.mesh.cut import dihedrals, seam_costs
 
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -228,10 +227,8 @@ def seam_placement(V: ArrayLike, F: np.ndarray, uv: ArrayLike, *, crease_deg: fl
     total = float(length.sum())
     if total <= 0:
         return dict(seam_length=0.0, on_creases=0.0, on_valleys=0.0, cost_per_length=0.0)
-    nrm = unit_normals(V, F)
-    crease = np.einsum("ij,ij->i", nrm[f0], nrm[f1]) <= np.cos(np.radians(crease_deg))
-    far = F[f1].sum(axis=1) - e[:, 0] - e[:, 1]
-    valley = np.einsum("ij,ij->i", nrm[f0], V[far] - V[e[:, 0]]) > 0
+    cos, valley = dihedrals(V, F, f0, f1, e[:, 0], e[:, 1])
+    crease = cos <= np.cos(np.radians(crease_deg))
     cost = seam_costs(V, F, f0, f1, e[:, 0], e[:, 1])
     return dict(seam_length=total, on_creases=float(length[crease].sum() / total),
                 on_valleys=float(length[crease & valley].sum() / total), cost_per_length=float(cost.sum() / total))

@@ -87,13 +87,19 @@ def seam_costs(V: np.ndarray, F: np.ndarray, fi: np.ndarray, fj: np.ndarray, ea:
     discounted on creases and most on valleys, so that every shortest cut prefers the edges where a
     texture seam shows least. Triangles must be consistently oriented (outward normals on a closed
     surface: a valley is an edge where the neighbour rises above the triangle's plane)."""
-    length = _edge_lengths(V, ea, eb)
+    cos, valley = dihedrals(V, F, fi, fj, ea, eb)
+    sharp = np.clip((np.arccos(cos) - CREASE_START) / (CREASE_ANGLE - CREASE_START), 0.0, 1.0)
+    return _edge_lengths(V, ea, eb) * (1.0 - (1.0 - np.where(valley, VALLEY_COST, RIDGE_COST)) * sharp)
+
+
+def dihedrals(V: np.ndarray, F: np.ndarray, fi: np.ndarray, fj: np.ndarray, ea: np.ndarray,
+              eb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(cos, valley) of each shared edge (triangles fi, fj; vertices ea, eb): the cosine of the angle
+    between the two unit normals, and whether fj rises above fi's plane (a concave edge)."""
     nrm = unit_normals(V, F)
     cos = np.clip(np.einsum("ij,ij->i", nrm[fi], nrm[fj]), -1.0, 1.0)
-    sharp = np.clip((np.arccos(cos) - CREASE_START) / (CREASE_ANGLE - CREASE_START), 0.0, 1.0)
     far = F[fj].sum(axis=1) - ea - eb                   # fj's corner off the shared edge
-    valley = np.einsum("ij,ij->i", nrm[fi], V[far] - V[ea]) > 0
-    return length * (1.0 - (1.0 - np.where(valley, VALLEY_COST, RIDGE_COST)) * sharp)
+    return cos, np.einsum("ij,ij->i", nrm[fi], V[far] - V[ea]) > 0
 
 
 def seam_length(V: ArrayLike, F: ArrayLike, labels: ArrayLike) -> float:
