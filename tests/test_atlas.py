@@ -337,9 +337,13 @@ def test_sharp_creases_split_first_and_merge_back_into_exact_unfoldings():
 def test_crease_split_never_goes_past_max_charts():
     import trimesh
 
+    from uvbake.atlas.charting import disk_charts
+
     box = trimesh.creation.box(extents=(1.0, 1.3, 0.8)).subdivide().subdivide()
     V, F = np.asarray(box.vertices, np.float64), np.asarray(box.faces, np.int64)
+    assert len(disk_charts(V, F, None, creases=True, max_charts=6)[0]) == 6     # one per face
+    # 6 crease parts would pass a budget of 4: the closed box is cut into disks instead (2 halves)
+    assert len(disk_charts(V, F, None, creases=True, max_charts=4)[0]) == 2
+    assert len(disk_charts(V, F, None)[0]) == 2                                # the paper's path: no creases
     charts, _, _ = make_charts(V, F, max_charts=4)
-    assert len(charts) <= 4                                    # 6 faces would be 6 parts: not split by creases
-    charts, _, _ = make_charts(V, F, max_charts=6)
-    assert 1 <= len(charts) <= 6
+    assert len(charts) <= 4
