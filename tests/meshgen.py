@@ -60,3 +60,17 @@ def torus(nu=12, nv=8, R=2.0, r=0.7):
                        np.linspace(0, 2 * np.pi, nv, endpoint=False), indexing="ij")
     V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1)
     return V.reshape(-1, 3), F
+
+
+def open_tube(nu=24, nv=60, *, radius=0.2, length=4.0, bend=None):
+    """An open tube (two boundary loops, genus 0), straight or bent along an arc of radius ``bend``:
+    developable, but only once cut from one end to the other."""
+    idx = np.arange(nu * nv).reshape(nv, nu)
+    a, b = idx[:-1], np.roll(idx[:-1], -1, axis=1)
+    c, d = np.roll(idx[1:], -1, axis=1), idx[1:]
+    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    th, z = np.meshgrid(np.linspace(0, 2 * np.pi, nu, endpoint=False), np.linspace(0, length, nv))
+    x, y = radius * np.cos(th), radius * np.sin(th)
+    if bend is not None:
+        x, z = (bend + x) * np.cos(z / bend) - bend, (bend + x) * np.sin(z / bend)
+    return np.stack([x, y, z], -1).reshape(-1, 3), F.astype(np.int64)

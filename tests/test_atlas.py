@@ -12,7 +12,7 @@ from uvbake.atlas.charting import conformal_factor, make_charts
 from uvbake.atlas.guarantee import area_factors, smallest_positive_root
 from uvbake.mesh.charts import check_chart
 
-from meshgen import cut_cylinder, plane
+from meshgen import cut_cylinder, open_tube, plane
 
 SCENES = Path(__file__).resolve().parent.parent / "sample_scenes"
 
@@ -64,6 +64,34 @@ def test_distortion_budget_cuts_a_long_protrusion_a_conformal_map_shrinks():
     # the plain formulation (one conformal chart) is what the budget prevents
     paper = uvbake.unwrap((V, F), alpha=0.0, texture_size_px=512, guarantee=False)
     assert paper.report["charts_final"] == 1 and paper.report["min_texel_share"] < 1e-3
+
+
+def test_a_tube_is_cut_open_between_its_loops_into_one_strip():
+    from uvbake.atlas.opening import open_holes
+    from uvbake.mesh.charts import Chart
+    from uvbake.mesh.topology import topology
+
+    V, F = open_tube()
+    assert topology(F, len(V)).n_boundary_loops == 2
+    chart = Chart(V, F, np.arange(len(V)), np.arange(len(F)), -1, "tube")
+    opened, seam, linked = open_holes(chart)
+    t = topology(opened.F, len(opened.V))
+    assert (t.n_boundary_loops, t.genus, t.n_components, linked) == (1, 0, 1, 1)
+    assert seam == pytest.approx(4.0, rel=1e-9)              # straight down the tube: its length
+    assert len(opened.V) == len(V) + 60                       # one copy of each of the seam's 60 vertices
+    assert np.array_equal(opened.face_index, chart.face_index)
+    # a disk (one loop) has nothing to link
+    Vp, Fp = plane(6)
+    assert open_holes(Chart(Vp, Fp, np.arange(len(Vp)), np.arange(len(Fp)), -1, "disk")) is None
+    # the charting: the tube is one chart, its conformal map the exact unrolling (the prism is
+    # developable); a bent tube (not developable) is one chart within the budget; no slits or cuts
+    charts, starts, log = make_charts(V, F, max_stretch=4.0)
+    assert len(charts) == 1 and [c.get("holes_linked") for c in log["budget_cuts"]] == [1]
+    assert np.allclose(area_factors(charts[0], starts[0]), 1.0, atol=1e-6)
+    Vb, Fb = open_tube(bend=1.5)
+    charts, starts, log = make_charts(Vb, Fb, max_stretch=4.0)
+    assert len(charts) == 1 and [c.get("holes_linked") for c in log["budget_cuts"]] == [1]
+    assert area_factors(charts[0], starts[0]).min() >= 0.25
 
 
 def test_cut_parts_inherit_the_parent_map_only_within_the_budget():

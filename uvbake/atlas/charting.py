@@ -30,6 +30,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
+from uvbake.atlas.opening import open_holes, slit
 from uvbake.errors import ChartError, InputError
 from uvbake.mesh.arrays import triangle_areas, unit_normals
 from uvbake.mesh.charts import Chart, check_chart, split_charts
@@ -151,54 +152,6 @@ def sub_charts(chart: Chart, sub_labels: ArrayLike) -> list[Chart]:
         parts.append(Chart(chart.V[verts], local.reshape(-1, 3).astype(np.int64), chart.vertex_map[verts],
                            chart.face_index[fidx], chart.label, f"{chart.name}.{k}"))
     return parts
-
-
-def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
-    """``chart`` cut open along the shortest edge paths from the vertices ``tips`` to its boundary.
-
-    The path's vertices (but the tip) get one copy per side, so the chart stays one disk with holes:
-    a finger-like protrusion, which a conformal map shrinks exponentially towards its tip, becomes a
-    strip that flattens with little distortion. The paths come from one shortest-path forest rooted on
-    the boundary, so together they form no loop and the chart stays a disk with holes. Returns
-    (chart, seam length), or None when no tip is inside the chart."""
-    from scipy.sparse.csgraph import dijkstra
-
-    from uvbake.mesh.cut import _corner_fans, seam_costs
-    from uvbake.mesh.topology import boundary_edges
-
-    V, F = chart.V, chart.F
-    n = len(V)
-    bnd = np.unique(boundary_edges(F, n))
-    tips = np.setdiff1d(np.asarray(tips, dtype=np.int64), bnd)
-    if len(tips) == 0:
-        return None
-    fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
-    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
-    cost = np.maximum(seam_costs(V, F, fi, fj, e[:, 0], e[:, 1]), 1e-12 * max(length.max(), 1e-300))
-    g = sp.coo_matrix((cost, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
-    dist, pred, src = dijkstra(g, directed=False, indices=bnd, min_only=True, return_predecessors=True)
-    tips = tips[np.isfinite(dist[tips])]
-    if len(tips) == 0:
-        return None
-    on = np.zeros(n, bool)                               # vertices on some tip's path
-    cur = tips
-    while len(cur):                                      # one step per path length (~sqrt(n)), vectorised over tips
-        on[cur] = True
-        cur = pred[cur]
-        cur = np.unique(cur[(cur >= 0)])
-        cur = cur[~on[cur]]
-    a = np.flatnonzero(on & (pred >= 0))
-    b = pred[a]
-    key = np.minimum(a, b) * n + np.maximum(a, b)
-    cut = np.isin(e[:, 0] * n + e[:, 1], key)
-    keep = ~cut
-    fan = _corner_fans(F, n, hi[keep], hj[keep]).reshape(-1, 3)
-    fans, local = np.unique(fan, return_inverse=True)
-    corner_of_fan = np.full(fan.max() + 1, -1)
-    corner_of_fan[fan.ravel()] = F.ravel()
-    verts = corner_of_fan[fans]
-    return Chart(V[verts], local.reshape(-1, 3).astype(np.int64), chart.vertex_map[verts], chart.face_index,
-                 chart.label, chart.name), float(length[cut].sum())
 
 
 def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
@@ -510,6 +463,12 @@ def _decide(st, chart, previous):
         st.starts.append(uv)
         return
     least = float(logf.min())
+    holes = open_holes(chart)
+    if holes is not None:                               # a tube or band: link its loops first (no new chart)
+        st.budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=1, holes_linked=holes[2],
+                                   seam_length=holes[1], least_factor=float(np.exp(least))))
+        st.queue.insert(0, (holes[0], least))
+        return
     slitted = None
     if previous is None or least > previous + np.log(2.0):
         slitted = slit(chart, _tips(chart, logf, frames[1], st.bound))

@@ -1,0 +1,130 @@
+"""Cutting a chart open without making a new chart: the charting's slits and hole links.
+
+    opened, seam = slit(chart, tips)          # shortest paths from protrusion tips to the boundary
+    opened, seam, k = open_holes(chart)       # a disk with holes linked into one disk (a tube -> a strip)
+
+Both cut interior edges only, so the chart stays one piece; its vertices on a cut get one copy per side.
+The charting (:mod:`uvbake.atlas.charting`) decides when; seams follow :func:`uvbake.mesh.cut.seam_costs`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from uvbake.mesh.charts import Chart
+from uvbake.mesh.topology import face_adjacency
+
+
+def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
+    """``chart`` cut open along the shortest edge paths from the vertices ``tips`` to its boundary.
+
+    The path's vertices (but the tip) get one copy per side, so the chart stays one disk with holes:
+    a finger-like protrusion, which a conformal map shrinks exponentially towards its tip, becomes a
+    strip that flattens with little distortion. The paths come from one shortest-path forest rooted on
+    the boundary, so together they form no loop and the chart stays a disk with holes. Returns
+    (chart, seam length), or None when no tip is inside the chart."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from uvbake.mesh.cut import seam_costs
+    from uvbake.mesh.topology import boundary_edges
+
+    V, F = chart.V, chart.F
+    n = len(V)
+    bnd = np.unique(boundary_edges(F, n))
+    tips = np.setdiff1d(np.asarray(tips, dtype=np.int64), bnd)
+    if len(tips) == 0:
+        return None
+    fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
+    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    cost = np.maximum(seam_costs(V, F, fi, fj, e[:, 0], e[:, 1]), 1e-12 * max(length.max(), 1e-300))
+    g = sp.coo_matrix((cost, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    dist, pred, src = dijkstra(g, directed=False, indices=bnd, min_only=True, return_predecessors=True)
+    tips = tips[np.isfinite(dist[tips])]
+    if len(tips) == 0:
+        return None
+    on = np.zeros(n, bool)                               # vertices on some tip's path
+    cur = tips
+    while len(cur):                                      # one step per path length (~sqrt(n)), vectorised over tips
+        on[cur] = True
+        cur = pred[cur]
+        cur = np.unique(cur[(cur >= 0)])
+        cur = cur[~on[cur]]
+    a = np.flatnonzero(on & (pred >= 0))
+    cut = np.isin(e[:, 0] * n + e[:, 1], np.minimum(a, pred[a]) * n + np.maximum(a, pred[a]))
+    return _opened(chart, cut, hi, hj), float(length[cut].sum())
+
+
+def _opened(chart: Chart, cut: np.ndarray, hi: np.ndarray, hj: np.ndarray) -> Chart:
+    """``chart`` with its interior edges ``cut`` (a mask over face_adjacency's edges, whose half-edges
+    are ``hi``, ``hj``) opened: every vertex gets one copy per fan of triangles left around it."""
+    from uvbake.mesh.cut import _corner_fans
+
+    F, n = chart.F, len(chart.V)
+    keep = ~cut
+    fan = _corner_fans(F, n, hi[keep], hj[keep]).reshape(-1, 3)
+    fans, local = np.unique(fan, return_inverse=True)
+    corner_of_fan = np.full(fan.max() + 1, -1)
+    corner_of_fan[fan.ravel()] = F.ravel()
+    verts = corner_of_fan[fans]
+    return Chart(chart.V[verts], local.reshape(-1, 3).astype(np.int64), chart.vertex_map[verts], chart.face_index,
+                 chart.label, chart.name)
+
+
+#: Charts with more boundary loops than this are not opened between their loops (open_holes).
+MAX_OPENED_LOOPS = 16
+
+
+def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
+    """``chart`` (a disk with holes) cut open into a disk along the cheapest seams (seam_costs) that link
+    each of its boundary loops to the others: a tube or a band, whose conformal map folds or shrinks one
+    end exponentially, becomes a strip that flattens with little distortion, without a new chart.
+    Loops are linked one at a time to the set already linked (the first loop), each by one shortest
+    path, so the seams form a tree over the loops. Returns (chart, seam length, loops linked), or None
+    when the chart has one loop (or none, or more than MAX_OPENED_LOOPS) or is not a disk afterwards."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from uvbake.mesh.cut import seam_costs
+    from uvbake.mesh.topology import boundary_edges, topology
+
+    V, F = chart.V, chart.F
+    n = len(V)
+    b = boundary_edges(F, n)
+    if not len(b):
+        return None
+    nl, loop = connected_components(sp.coo_matrix((np.ones(len(b)), (b[:, 0], b[:, 1])), shape=(n, n)),
+                                    directed=False)
+    on_loop = np.full(n, -1)
+    verts = np.unique(b)
+    on_loop[verts] = loop[verts]
+    ids, loop_of = np.unique(on_loop[verts], return_inverse=True)
+    if not 2 <= len(ids) <= MAX_OPENED_LOOPS:
+        return None
+    on_loop[verts] = loop_of                                   # loops numbered 0..k-1
+    fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
+    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    cost = np.maximum(seam_costs(V, F, fi, fj, e[:, 0], e[:, 1]), 1e-12 * max(length.max(), 1e-300))
+    g = sp.coo_matrix((cost, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    linked = np.zeros(len(ids), bool)
+    linked[0] = True
+    cut_keys = []
+    for _ in range(len(ids) - 1):                              # one shortest path per loop linked
+        src = verts[linked[on_loop[verts]]]
+        dist, pred = dijkstra(g, directed=False, indices=src, min_only=True, return_predecessors=True)[:2]
+        far = verts[~linked[on_loop[verts]]]
+        far = far[np.isfinite(dist[far])]
+        if not len(far):
+            return None
+        path = [int(far[np.argmin(dist[far])])]
+        while pred[path[-1]] >= 0:                             # one step per path vertex
+            path.append(int(pred[path[-1]]))
+        p = np.array(path)
+        linked[on_loop[p[on_loop[p] >= 0]]] = True             # every loop the path touches is linked
+        cut_keys.append(np.minimum(p[:-1], p[1:]) * n + np.maximum(p[:-1], p[1:]))
+    cut = np.isin(e[:, 0] * n + e[:, 1], np.concatenate(cut_keys))
+    opened = _opened(chart, cut, hi, hj)
+    topo = topology(opened.F, len(opened.V))
+    if topo.n_components != 1 or topo.genus != 0 or topo.n_boundary_loops != 1:
+        return None
+    return opened, float(length[cut].sum()), len(ids) - 1
