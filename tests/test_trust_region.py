@@ -150,3 +150,22 @@ def test_the_last_flip_free_iterate_is_kept_for_a_resumed_solve():
             assert np.array_equal(ff, x)
         else:
             assert ff is None or not np.array_equal(ff, x)
+
+
+def test_a_solve_whose_energy_stalls_at_rounding_stops_instead_of_running_to_max_iter():
+    from uvbake.flatten.solvers.trust import STALL, STALL_RTOL, _stalled
+
+    V, F = bumpy_disk()
+    ref = parameterize(V, F, alpha=0.5)
+    assert ref.converged and ref.stop_reason == "converged"
+    # a tolerance no gradient can reach: the minimum is reached within a few iterations, then F only
+    # moves in its last digits; the solve stops there with the reference's energy
+    r = parameterize(V, F, alpha=0.5, tol=1e-300, max_iter=1000)
+    assert r.stop_reason == "roundoff limited" and not r.converged
+    assert r.iterations < ref.iterations + 3 * STALL
+    assert r.energy == pytest.approx(ref.energy, rel=1e-10)
+    assert r.n_flipped == 0 and r.lambda_min > 0                # the certificate still runs at that point
+    h = list(np.linspace(2.0, 1.0, 5)) + [1.0] * STALL
+    assert _stalled(h)
+    assert not _stalled(h[:-1])                                  # one iteration short of the window
+    assert not _stalled(h[:-1] + [1.0 - 2 * STALL_RTOL])         # a decrease above rounding is progress

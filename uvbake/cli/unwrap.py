@@ -313,7 +313,13 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
     for w in (rep.get("repair") or {}).get("warnings", []):
         print(f"uvbake: warning: {w}", file=sys.stderr)
     for c in rep["charts"]:
-        if not c["converged"]:
+        if c["converged"]:
+            continue
+        if c["stop_reason"] == "roundoff limited":
+            print(f"uvbake: note: {c['name']} stopped where rounding hides further decrease of the energy "
+                  f"(|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations; thin triangles limit it)",
+                  file=sys.stderr)
+        else:
             print(f"uvbake: warning: {c['name']} stopped before convergence ({c['stop_reason']}, "
                   f"|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations); raise --max-iter",
                   file=sys.stderr)
