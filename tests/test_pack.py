@@ -255,3 +255,31 @@ def test_bad_charts_raise_input_error():
         pack_charts([uv], [F + 10])
     with pytest.raises(InputError, match="cannot fit"):     # gutters leave the charts under a texel
         pack_charts([uv, uv, uv], [F, F, F], texture_size_px=64, gutter_px=31)
+
+
+def test_a_full_resolution_layout_past_the_border_margin_falls_back_to_one_that_keeps_the_gutter(monkeypatch):
+    import dataclasses
+
+    import uvbake.atlas.fit as fit
+
+    uvs, faces = chart_set(5, n=70)                      # 64 charts and more: fit_scale's full-resolution trials
+    real = fit.fit_scale
+    overran = []
+
+    def past_the_border(packer, W, H, g, **kw):           # the search's layout, 2 % past the atlas's side
+        p = real(packer, W, H, g, **kw)
+        lo, hi = fit._layout_box(packer, p)
+        k = 1.02 * W / (hi - lo).max()
+        q = dataclasses.replace(p, density=p.density * k, offset=(p.offset - lo) * k)
+        overran.append(fit.scale_to_border(packer, q, W, H, g) is None)
+        return q
+
+    monkeypatch.setattr(fit, "fit_scale", past_the_border)
+    size, gutter = 1024, 4
+    res = pack_charts(uvs, faces, texture_size_px=size, gutter_px=gutter, method="shape")
+    assert overran == [True]
+    assert min_gap(res.uv, faces) >= gutter / size * (1 - 1e-9)
+    lo = min(q.min() for q in res.uv)
+    hi = max(q.max() for q in res.uv)
+    assert lo >= gutter / size / 2 * (1 - 1e-9) and hi <= 1 - gutter / size / 2 * (1 - 1e-9)
+    assert res.efficiency > 0.3

@@ -465,7 +465,14 @@ def _fit_free_scale(packer, W, H, g, guess):
     if p is None:
         raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}: the gutters alone "
                          f"take the room; reduce gutter_px or increase texture_size_px")
-    p = scale_to_border(packer, p, W, H, g)
+    q = scale_to_border(packer, p, W, H, g)
+    if q is None:         # a full-resolution layout of fit_scale past the border margin (rare: 1022 of 1020
+        # texels on a spiky sphere's 64+ charts): the coarse strips, whose layouts scaled to the border fit
+        q = fit_width(packer, W, H, g, p.density, rounds=1, order_packs=0)
+        if q is None:
+            raise InputError(f"the charts cannot fit a {W}x{H}-texel atlas with gutter_px={g}; reduce gutter_px "
+                             f"or increase texture_size_px")
+    p = q
     if big and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
         p = _compacted(packer, p, W, H, g, 1 if faces >= _COMPACT_FULL_FACES else 2)
     return p
