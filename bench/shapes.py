@@ -2,8 +2,10 @@
 
     PYTHONPATH=. python3 bench/shapes.py [--alphas 0 0.1 0.5 0.9]
 
-Eleven shapes built with trimesh (spheres, a capsule, two tori, a subdivided box, a cylinder, a cone,
-an annulus, a noisy sphere, a sphere with four long legs, a long box): for each alpha, in-process
+Twenty shapes built with trimesh and numpy (spheres, a capsule, two tori, a subdivided box, a cylinder,
+a cone, an annulus, a noisy sphere, a sphere with four long legs, a long box; open tubes straight, bent
+and coiled, a torus knot, a terrain, a sphere with five thin fingers, a sphere with 30 spikes, a bent
+capped pipe of sliver triangles): for each alpha, in-process
 ``uvbake.unwrap((V, F), alpha=a)`` without a bake, its flips and overlapping pairs
 (``uvbake.validate``) and least texel share; at alpha 0.5 the CPU ratio against ``xatlas.parametrize``
 (process CPU seconds, both modules imported first). Nothing is read from disk: the shapes are the
@@ -35,6 +37,18 @@ def shapes():
     long_box = creation.box(extents=(10.0, 1.0, 1.0))
     for _ in range(4):
         long_box = long_box.subdivide()
+    spiky = creation.icosphere(subdivisions=3)
+    spiky.vertices[rng.choice(len(spiky.vertices), 30, replace=False)] *= 3.0
+    fingers = creation.icosphere(subdivisions=4)
+    d = rng.standard_normal((5, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    u = fingers.vertices / np.linalg.norm(fingers.vertices, axis=1, keepdims=True)
+    reach = np.clip((u @ d.T).max(axis=1) - 0.97, 0, None) / 0.03
+    fingers = trimesh.Trimesh(fingers.vertices * (1 + 5 * reach)[:, None], fingers.faces, process=False)
+    # a capped tube of sliver triangles (a CAD cylinder's long facets split evenly, aspect up to 400), bent
+    pipe = creation.cylinder(radius=0.2, height=10.0, sections=24)
+    pv, pf = trimesh.remesh.subdivide_to_size(pipe.vertices, pipe.faces, max_edge=0.3)
+    pv = np.column_stack([(4 + pv[:, 0]) * np.cos(pv[:, 2] / 4) - 4, pv[:, 1], (4 + pv[:, 0]) * np.sin(pv[:, 2] / 4)])
     return {
         "icosphere": creation.icosphere(subdivisions=4),
         "uv_sphere": creation.uv_sphere(count=[48, 48]),
@@ -48,7 +62,67 @@ def shapes():
         "noisy_sphere": noisy,
         "legged_sphere": legs,
         "long_box": long_box,
+        "open_tube": _tube(lambda z, x: (x, z)),
+        "bent_tube": _tube(lambda z, x: ((4 + x) * np.cos(z / 4) - 4, (4 + x) * np.sin(z / 4))),
+        "coil_tube": _tube(lambda z, x: ((1.2 + x) * np.cos(z / 1.2), (1.2 + x) * np.sin(z / 1.2) + 0.05 * z), 500, 20.0),
+        "torus_knot": _torus_knot(),
+        "terrain": _terrain(rng),
+        "fingers": fingers,
+        "spiky_sphere": spiky,
+        "sliver_pipe": trimesh.Trimesh(pv, pf, process=False),
     }
+
+
+def _grid(nu, nv, wrap_v):
+    """Two triangles per cell of an nu x nv vertex grid, the v direction closed when ``wrap_v``."""
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    b = np.roll(idx, -1, axis=1) if wrap_v else idx[:, 1:]
+    a = idx if wrap_v else idx[:, :-1]
+    a0, b0, a1, b1 = a[:-1], b[:-1], a[1:], b[1:]
+    return np.concatenate([np.stack([a0, a1, b1], -1).reshape(-1, 3), np.stack([a0, b1, b0], -1).reshape(-1, 3)])
+
+
+def _tube(path, nu=250, length=10.0, radius=0.2, nv=32):
+    """An open tube of near-square cells (two boundary loops) along ``path(z, x) -> (x', z')`` in its plane."""
+    import trimesh
+
+    z, a = np.meshgrid(np.linspace(0, length, nu), np.linspace(0, 2 * np.pi, nv, endpoint=False), indexing="ij")
+    x, y = radius * np.cos(a), radius * np.sin(a)
+    px, pz = path(z, x)
+    return trimesh.Trimesh(np.stack([px, y, pz], -1).reshape(-1, 3), _grid(nu, nv, True), process=False)
+
+
+def _torus_knot(nu=240, nv=16, p=2, q=3, radius=0.3):
+    """A (2,3) torus knot's tube: a torus (genus 1) knotted around itself."""
+    import trimesh
+
+    t = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+
+    def curve(t):
+        r = np.cos(q * t) + 2
+        return np.stack([r * np.cos(p * t), r * np.sin(p * t), -np.sin(q * t)], -1)
+
+    c = curve(t)
+    T = curve(t + 1e-4) - c
+    T /= np.linalg.norm(T, axis=1, keepdims=True)
+    N = np.cross(T, [0.0, 0.0, 1.0])
+    N /= np.linalg.norm(N, axis=1, keepdims=True)
+    B = np.cross(T, N)
+    a = np.linspace(0, 2 * np.pi, nv, endpoint=False)
+    V = c[:, None] + radius * (np.cos(a)[None, :, None] * N[:, None] + np.sin(a)[None, :, None] * B[:, None])
+    F = _grid(nu + 1, nv, True)
+    return trimesh.Trimesh(V.reshape(-1, 3), F % (nu * nv), process=False)
+
+
+def _terrain(rng, n=70):
+    """A height field of 25 random bumps and pits (an open disk, no two regions alike)."""
+    import trimesh
+
+    x, y = np.meshgrid(np.linspace(0, 4, n), np.linspace(0, 4, n), indexing="ij")
+    z = np.zeros_like(x)
+    for cx, cy, h, s in rng.uniform([0, 0, -1.5, 0.1], [4, 4, 1.5, 0.6], (25, 4)):   # one iteration per bump
+        z += h * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * s * s))
+    return trimesh.Trimesh(np.stack([x, y, z], -1).reshape(-1, 3), _grid(n, n, False), process=False)
 
 
 def main(argv=None):
