@@ -375,3 +375,27 @@ def test_crease_split_never_goes_past_max_charts():
     assert len(disk_charts(V, F, None)[0]) == 2                                # the paper's path: no creases
     charts, _, _ = make_charts(V, F, max_charts=4)
     assert len(charts) <= 4
+
+
+@pytest.mark.parametrize("start", ["flipped", "collapsed"])
+def test_a_chart_whose_start_is_flipped_or_collapsed_restarts_from_its_own_conformal_map(start):
+    from uvbake.atlas.guarantee import solve_valid
+    from uvbake.mesh.arrays import signed_areas
+    from uvbake.mesh.charts import Chart
+
+    V = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.2], [0.3, 1.0, 0.1]])
+    F = np.array([[0, 1, 2]])
+    # a part cut from a parent's map across its fold: mirrored, or the whole triangle on one point far
+    # out (a spiky sphere at alpha 0.1 handed the solve this start, which it moved to 2e15)
+    uv0 = np.array([[0.0, 0.0], [1.0, 0.0], [0.3, -1.0]]) if start == "flipped" else \
+        np.array([[16911.432056148995, 3871.2246241975286], [16911.432056148995, 3871.224624197528],
+                  [16911.432056148995, 3871.2246241975304]])
+    chart = Chart(V, F, np.arange(3), np.arange(1), -1, "one triangle")
+    charts, results, _ = solve_valid([chart], [uv0], dict(alpha=0.1), max_stretch=4.0)
+    uv = results[0].uv
+    assert len(charts) == 1 and results[0].n_flipped == 0 and np.all(np.isfinite(uv))
+    assert signed_areas(uv, F)[0] > 0
+    # one triangle's minimum is its own shape: every edge scaled by one factor (1e-6)
+    e3 = np.linalg.norm(V[[1, 2, 0]] - V, axis=1)
+    e2 = np.linalg.norm(uv[[1, 2, 0]] - uv, axis=1)
+    assert np.ptp(e2 / e3) <= 1e-6 * (e2 / e3).mean()

@@ -290,7 +290,38 @@ def _solve_flip_free(charts, starts, options, workers, progress):
                                    injective=True, checked=True, **options)
         for i, r in zip(again, redo):
             results[i] = r
+    # a start flipped or collapsed itself (a part of a parent's map across its fold) leaves the LM no
+    # valid path: such charts start again from their own conformal map when that has no flip (a single
+    # triangle's always: a spiky sphere kept one-triangle charts flipped or collapsed to a point at alpha 0.1)
+    fresh = _own_conformal_starts(charts, [i for i, r in enumerate(results) if _broken_map(charts[i], r)])
+    if fresh:
+        redo = parameterize_charts([charts[i] for i in fresh], starts=list(fresh.values()), workers=workers,
+                                   injective=True, checked=True, **options)
+        for i, r in zip(fresh, redo):
+            if not _broken_map(charts[i], r):
+                results[i] = r
     return results
+
+
+def _broken_map(chart, result):
+    """Whether a solved map has a non-finite coordinate, a flipped or a collapsed (zero-area) triangle."""
+    from uvbake.mesh.arrays import signed_areas
+
+    uv = np.asarray(result.uv)
+    return bool(result.n_flipped > 0 or not np.all(np.isfinite(uv)) or np.any(signed_areas(uv, chart.F) <= 0))
+
+
+def _own_conformal_starts(charts, indices):
+    """{i: chart i's own conformal map} for the charts in ``indices`` whose conformal map has no flipped
+    or collapsed triangle."""
+    from uvbake.atlas.charting import conformal_factor
+
+    out = {}
+    for i in indices:                                 # one iteration per chart left flipped
+        uv, logf = conformal_factor(charts[i].V, charts[i].F)
+        if np.all(np.isfinite(logf)):
+            out[i] = uv
+    return out
 
 
 def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *, max_stretch: float,
