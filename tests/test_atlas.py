@@ -399,3 +399,30 @@ def test_a_chart_whose_start_is_flipped_or_collapsed_restarts_from_its_own_confo
     e3 = np.linalg.norm(V[[1, 2, 0]] - V, axis=1)
     e2 = np.linalg.norm(uv[[1, 2, 0]] - uv, axis=1)
     assert np.ptp(e2 / e3) <= 1e-6 * (e2 / e3).mean()
+
+
+def test_the_next_merge_is_the_smallest_charts_first_untried_pair_among_its_longest_borders():
+    from uvbake.atlas.merge import MERGE_TRIES, _next_merge, _pair
+
+    def reference(border, area, serial, tried):          # the rule, one chart after another
+        for i in np.argsort(area, kind="stable"):
+            mine = border[border[:, 0] == i]
+            mine = mine[np.lexsort((mine[:, 1], -mine[:, 2]))]
+            for j in mine[:MERGE_TRIES, 1].astype(np.int64):
+                if _pair(serial[i], serial[j]) not in tried:
+                    return int(i), int(j)
+        return None
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        n = int(rng.integers(2, 12))
+        pairs = {(int(a), int(b)) for a, b in rng.integers(0, n, (3 * n, 2)) if a != b}
+        pairs |= {(b, a) for a, b in pairs}
+        ij = np.array(sorted(pairs), dtype=float).reshape(-1, 2)
+        length = {p: float(rng.choice([1.0, 2.0, 3.0])) for p in pairs if p[0] < p[1]}   # ties on purpose
+        border = np.column_stack([ij, [length[(min(p), max(p))] for p in map(tuple, ij.astype(int))]])
+        area = list(rng.choice([1.0, 2.0, 5.0], n))
+        serial = list(rng.permutation(3 * n)[:n])
+        tried = {_pair(serial[a], serial[b]) for a, b in ij.astype(int) if rng.random() < 0.5}
+        assert _next_merge(border, area, serial, tried) == reference(border, area, serial, tried)
+    assert _next_merge(np.zeros((0, 3)), [1.0], [0], set()) is None

@@ -201,3 +201,24 @@ def test_seam_placement_measures_the_share_of_seams_on_creases_and_valleys(up):
     uv2[along[F].mean(axis=1) > 3.0] += [0.5, 0.0]              # cut across the flat part instead
     s2 = seam_placement(V, F, uv2)
     assert s2["on_creases"] == 0.0 and s2["cost_per_length"] == pytest.approx(1.0, rel=1e-12)
+
+
+def test_small_pieces_take_the_dense_fiedler_vector_the_iterative_one_approximates(monkeypatch):
+    import uvbake.mesh.cut as cut
+    from uvbake.mesh.topology import face_adjacency
+
+    V, F = bumpy_disk(10)                                # 162 jittered triangles (a simple eigenvalue)
+    m = len(F)
+    fi, fj, e = face_adjacency(F, len(V))
+    w = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    X = V[F]
+    mass = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    assert m <= cut.DENSE_FIEDLER
+    dense = cut._fiedler(m, fi, fj, w, mass)
+    monkeypatch.setattr(cut, "DENSE_FIEDLER", 0)
+    lobpcg = cut._fiedler(m, fi, fj, w, mass)
+    # the same generalized eigenvector up to sign and LOBPCG's tolerance (1e-5 on the residual)
+    cos = abs(dense @ (mass * lobpcg)) / np.sqrt((dense @ (mass * dense)) * (lobpcg @ (mass * lobpcg)))
+    assert cos == pytest.approx(1.0, abs=1e-4)
+    # M-orthogonal to the constants, as LOBPCG's is constrained to be
+    assert abs(mass @ dense) <= 1e-9 * np.abs(mass * dense).sum()

@@ -71,16 +71,26 @@ def merge_back(st: _Charting) -> None:
 
 def _next_merge(border: np.ndarray, area: list, serial: list, tried: set) -> tuple[int, int] | None:
     """The next (small chart, neighbour) pair to try, or None: charts by area, smallest first;
-    neighbours of the same label by shared border length, longest first, at most MERGE_TRIES each."""
+    neighbours of the same label by shared border length, longest first, at most MERGE_TRIES each.
+    All pairs are ranked at once (one call per merge attempt: 300 small closed parts took 1 s when
+    each chart's neighbours were looked up in turn)."""
     if not len(border):
         return None
-    for i in np.argsort(area, kind="stable"):
-        mine = border[border[:, 0] == i]
-        mine = mine[np.lexsort((mine[:, 1], -mine[:, 2]))]
-        for j in mine[:MERGE_TRIES, 1].astype(np.int64):
-            if _pair(serial[i], serial[j]) not in tried:
-                return int(i), int(j)
-    return None
+    i, j = border[:, 0].astype(np.int64), border[:, 1].astype(np.int64)
+    o = np.lexsort((j, -border[:, 2], i))                     # each chart's neighbours, longest border first
+    i, j = i[o], j[o]
+    first = np.searchsorted(i, i)                             # i is sorted: its group's first row
+    keep = np.arange(len(i)) - first < MERGE_TRIES
+    i, j = i[keep], j[keep]
+    s = np.asarray(serial)
+    fresh = np.array([_pair(int(a), int(b)) not in tried for a, b in zip(s[i], s[j])], dtype=bool)
+    if not fresh.any():
+        return None
+    rank = np.empty(len(area), np.int64)
+    rank[np.argsort(area, kind="stable")] = np.arange(len(area))
+    cand = np.flatnonzero(fresh)
+    k = cand[np.lexsort((cand, rank[i[cand]]))[0]]            # smallest chart first, then its row order
+    return int(i[k]), int(j[k])
 
 
 def _pair(a, b):

@@ -146,6 +146,11 @@ def _factor(A):
         return splu(A.tocsc(), permc_spec="COLAMD").solve
 
 
+#: Pieces of at most this many triangles get their Fiedler vector from a dense eigensolver (one LAPACK
+#: call; LOBPCG's setup cost 9 ms on a 20-triangle closed part, 300 such parts 2.6 s).
+DENSE_FIEDLER = 256
+
+
 def _fiedler(m, fi, fj, w, mass):
     """The dual Laplacian's Fiedler vector (L x = lambda M x, M = diag(mass)), shape (m,).
 
@@ -157,7 +162,14 @@ def _fiedler(m, fi, fj, w, mass):
 
     from scipy.sparse.linalg import LinearOperator, eigsh, lobpcg
 
-    if m > 8:
+    if 8 < m <= DENSE_FIEDLER:                      # small pieces: the dense generalized eigenproblem
+        from scipy.linalg import eigh
+
+        L = _laplacian(m, fi, fj, w / w.mean()).toarray()
+        x = eigh(L, np.diag(mass / mass.mean()), subset_by_index=[1, 1])[1][:, 0]
+        if np.all(np.isfinite(x)) and np.ptp(x) > 0:
+            return x
+    elif m > 8:
         L = _laplacian(m, fi, fj, w / w.mean())
         M = sp.diags(mass / mass.mean()).tocsc()
         try:
