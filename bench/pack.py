@@ -4,6 +4,7 @@
     python bench/pack.py --only scene,ribbon  # chart sets whose name contains one of these
     python bench/pack.py --no-blender         # skip Blender (it needs /work/venvs/bpy or --bpy-python)
     python bench/pack.py --commands           # the whole uvbake command per mesh: packing's share of it
+    python bench/pack.py --cli                # the same for the README's job run as users run it
 
 Chart sets (bench/pack_charts.py, cached): uvbake's own final charts on every mesh in ../shared/meshes and
 sample_scenes/, xatlas's charts (``xatlas.parametrize`` split into islands) on the same meshes, and a long
@@ -190,6 +191,33 @@ def commands(log=sys.stdout, only=None):
     pack_module.pack_charts, split_module.BoxLayouts.__call__, split_module.split_for_packing = orig
 
 
+def cli_commands(log=sys.stdout, only=None):
+    """The README's main job as a user runs it, ``uvbake MESH --alpha 0.5 --bake checker.png`` (1024 px,
+    OBJ + PNG + JSON report written), one subprocess per mesh: packing's wall time against the whole
+    command's (both from the report's timings: ``pack_s``, ``cli_total_s``, which includes imports,
+    loading, the bake and the writes), and the subprocess's CPU time (user + sys)."""
+    import json
+    import resource
+
+    from pack_charts import mesh_paths
+
+    print("| mesh | charts | packing | pack (s) | command (s) | share | command CPU (s) |", file=log)
+    print("|---|---:|---:|---:|---:|---:|---:|", file=log)
+    for path in mesh_paths():
+        if only and not any(o in path.stem for o in only):
+            continue
+        with tempfile.TemporaryDirectory() as tmp:
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            subprocess.run([sys.executable, "-m", "uvbake", str(path), "--alpha", "0.5", "--bake", "checker.png",
+                            "-o", f"{tmp}/out.obj", "--json", f"{tmp}/r.json", "-q"], check=True)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            rep = json.loads(Path(f"{tmp}/r.json").read_text())
+        t = rep["timings"]
+        cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+        print(f"| {path.stem} | {rep['charts_final']} | {100 * rep['atlas']['efficiency']:.1f} % | {t['pack_s']:.2f} "
+              f"| {t['cli_total_s']:.2f} | {100 * t['pack_s'] / t['cli_total_s']:.0f} % | {cpu:.2f} |", file=log, flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default=None, help="comma-separated substrings of chart-set names")
@@ -199,7 +227,10 @@ def main(argv=None):
     ap.add_argument("--no-xatlas", action="store_true")
     ap.add_argument("--bpy-python", default=str(BPY))
     ap.add_argument("--commands", action="store_true", help="time the whole uvbake command on every mesh instead")
+    ap.add_argument("--cli", action="store_true", help="time the README's job (CLI with a checker bake) on every mesh")
     args = ap.parse_args(argv)
+    if args.cli:
+        return cli_commands(only=args.only.split(",") if args.only else None)
     if args.commands:
         return commands(only=args.only.split(",") if args.only else None)
     N, g = args.size, args.gutter
