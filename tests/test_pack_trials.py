@@ -177,3 +177,23 @@ def test_an_atlas_of_many_charts_is_packed_once_and_not_split(monkeypatch):
     monkeypatch.setattr(packsplit, "split_straight", lambda c, r, theta=None: cuts.append(len(c.F)))
     out = packsplit.split_for_packing(charts[:-1], results[:-1], pack, boxes=BoxLayouts())
     assert cuts == [len(sF)] and out[3] == []
+
+
+def test_a_chart_whose_length_alone_keeps_the_atlas_sparse_is_cut_first_whatever_its_share():
+    """A strip 12 long among squares: it holds under MIN_SHARE of the area, but a square atlas holding it
+    packs at most area / 12^2, under BELOW_EFFICIENCY, so it is the chart to cut."""
+    strip, sF = grid_chart(48, 2, 12.0, 0.5)
+    uvs, faces = [strip], [sF]
+    for k in range(7):
+        uv, F = grid_chart(4, 4, 2.0, 2.0, shift=(3 * k, 3.0))
+        uvs.append(uv)
+        faces.append(F)
+    charts, results = [_Chart(F) for F in faces], [_Result(u) for u in uvs]
+    area = np.array([np.abs(packsplit.signed_areas(u, F)).sum() for u, F in zip(uvs, faces)])
+    assert area[0] < packsplit.MIN_SHARE * area.sum()                      # not by its share
+    assert 12.0 ** 2 * packsplit.BELOW_EFFICIENCY > area.sum()             # by its length
+    assert packsplit._largest(charts, results) == 0
+    # once the strip is in pieces of a few units, nothing binds and no chart holds MIN_SHARE
+    halves = [grid_chart(12, 2, 3.0, 0.5, shift=(0, 5 * k))[0] for k in range(4)]
+    short = [_Result(u) for u in halves + uvs[1:]]
+    assert packsplit._largest([_Chart(grid_chart(12, 2, 3.0, 0.5)[1])] * 4 + charts[1:], short) is None

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.atlas.maxrects import min_area_rects
+from uvbake.atlas.maxrects import min_area_rect, min_area_rects
 from uvbake.atlas.pack import _SHAPES_ONLY_FILL, PackResult, _check_gutter, _check_size, packed_result, place_boxes
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
@@ -35,6 +35,8 @@ MAX_ROUNDS = 4
 BELOW_EFFICIENCY = 0.66
 #: Only charts with at least this share of the atlas's chart area are split (atlases of a few large charts).
 MIN_SHARE = 0.25
+#: Split rounds cutting a chart whose length alone keeps the atlas sparse (see _largest), besides MAX_ROUNDS.
+MAX_LONG_ROUNDS = 8
 #: Atlases of more charts than this are not split: one chart cut among many changes little, the others
 #: fill around it (cow, 30 charts, the largest 26 % of the area: three rounds' trials 51.6 -> 52.3 %, never
 #: the TRIAL_GAIN a round needs, for a third of its packing time); splits paid on 2-11 charts.
@@ -63,11 +65,12 @@ def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
     trial_pack = pack if boxes is None else boxes
     charts, results = list(charts), list(results)
     packed = pack([r.uv for r in results], [c.F for c in charts])
-    if packed.efficiency >= BELOW_EFFICIENCY or len(charts) > MAX_ATLAS_CHARTS or _largest(charts, results) is None:
+    rect = None if boxes is None else boxes.rect
+    if packed.efficiency >= BELOW_EFFICIENCY or len(charts) > MAX_ATLAS_CHARTS or \
+            _largest(charts, results, rect) is None:
         return charts, results, packed, []
     cur = trial_pack([r.uv for r in results], [c.F for c in charts]) if boxes is not None else packed
-    cur_c, cur_r, cur, records = _rounds(charts, results, cur, trial_pack, max_charts,
-                                         None if boxes is None else boxes.rect)
+    cur_c, cur_r, cur, records = _rounds(charts, results, cur, trial_pack, max_charts, rect)
     if not records:
         return charts, results, packed, []
     final = cur                                          # the trial layout is a layout too: the denser is kept
@@ -89,9 +92,14 @@ def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
     Returns (charts, results, their trial layout, records)."""
     records: list[dict] = []
     best = (charts, results, cur, 0)
-    for _ in range(MAX_ROUNDS):                          # rounds: one split each
+    shares = 0
+    for _ in range(MAX_ROUNDS + MAX_LONG_ROUNDS):        # rounds: one split each
         check_cancelled()                                # Ctrl-C / SIGTERM: stop between rounds
-        i = _largest(charts, results)
+        i = _largest(charts, results, rect)
+        if i is not None and not _binding(charts, results, rect, i):
+            shares += 1                                  # a cut by area share: at most MAX_ROUNDS of them
+            if shares > MAX_ROUNDS:
+                break
         cut = None if i is None else split_straight(
             charts[i], results[i], None if rect is None else rect(results[i].uv, charts[i].F)[0])
         if cut is None:
@@ -166,11 +174,33 @@ def _boxes_suffice(charts, results, boxes):
     return boxes.fill([r.uv for r in results], [c.F for c in charts]) >= _SHAPES_ONLY_FILL
 
 
-def _largest(charts, results):
-    """The chart holding the most UV area, when it holds at least MIN_SHARE of the atlas's."""
-    area = np.array([np.abs(signed_areas(r.uv, c.F)).sum() for c, r in zip(charts, results)])
+def _largest(charts, results, rect=None):
+    """The chart to cut next: the longest, when its minimum-area rectangle's long side alone keeps the
+    atlas below BELOW_EFFICIENCY (a square holding a chart of length L packs at most area / L^2: a sphere's
+    twelve latitude bands, one label each, packed at 33 %); else the chart holding the most UV area,
+    when it holds at least MIN_SHARE of the atlas's. ``rect(uv, F)``: a chart's min_area_rect, when known."""
+    area, big, length = _sizes(charts, results, rect)
+    k = int(np.argmax(np.where(big, length, -1.0)))
+    if big[k] and BELOW_EFFICIENCY * length[k] ** 2 > area.sum():
+        return k
     i = int(np.argmax(area))
-    return i if area[i] >= MIN_SHARE * area.sum() and len(charts[i].F) >= 8 else None
+    return i if area[i] >= MIN_SHARE * area.sum() and big[i] else None
+
+
+def _sizes(charts, results, rect=None):
+    """Each chart's UV area, whether it has faces enough to cut (8), and its minimum-area rectangle's
+    long side."""
+    area = np.array([np.abs(signed_areas(r.uv, c.F)).sum() for c, r in zip(charts, results)])
+    big = np.array([len(c.F) >= 8 for c in charts])
+    rect = rect or (lambda uv, F: min_area_rect(np.asarray(uv)))
+    length = np.array([rect(r.uv, c.F)[1] for c, r in zip(charts, results)])     # one rectangle per chart
+    return area, big, length
+
+
+def _binding(charts, results, rect, i):
+    """Whether chart ``i`` alone keeps the atlas below BELOW_EFFICIENCY by its length (see _largest)."""
+    area, _, length = _sizes(charts, results, rect)
+    return bool(BELOW_EFFICIENCY * length[i] ** 2 > area.sum())
 
 
 def split_straight(chart: Chart, result: ParamResult,
