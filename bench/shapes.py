@@ -2,10 +2,10 @@
 
     PYTHONPATH=. python3 bench/shapes.py [--alphas 0 0.1 0.5 0.9]
 
-Twenty shapes built with trimesh and numpy (spheres, a capsule, two tori, a subdivided box, a cylinder,
+Twenty-one shapes built with trimesh and numpy (spheres, a capsule, two tori, a subdivided box, a cylinder,
 a cone, an annulus, a noisy sphere, a sphere with four long legs, a long box; open tubes straight, bent
 and coiled, a torus knot, a terrain, a sphere with five thin fingers, a sphere with 30 spikes, a bent
-capped pipe of sliver triangles): for each alpha, in-process
+capped pipe of sliver triangles, 100 separate small spheres): for each alpha, in-process
 ``uvbake.unwrap((V, F), alpha=a)`` without a bake, its flips and overlapping pairs
 (``uvbake.validate``) and least texel share; at alpha 0.5 the CPU ratio against ``xatlas.parametrize``
 (process CPU seconds, both modules imported first). Nothing is read from disk: the shapes are the
@@ -70,7 +70,21 @@ def shapes():
         "fingers": fingers,
         "spiky_sphere": spiky,
         "sliver_pipe": trimesh.Trimesh(pv, pf, process=False),
+        "many_parts": _many_parts(rng),
     }
+
+
+def _many_parts(rng, n=100):
+    """``n`` separate closed spheres of 80 triangles, scattered (a kit of small parts: one chart or two each)."""
+    import trimesh
+    from trimesh import creation
+
+    parts = []
+    for _ in range(n):                        # one iteration per part
+        s = creation.icosphere(subdivisions=1)
+        parts.append(trimesh.Trimesh(s.vertices * rng.uniform(0.2, 1.0) + rng.uniform(-20, 20, 3), s.faces,
+                                     process=False))
+    return trimesh.util.concatenate(parts)
 
 
 def _grid(nu, nv, wrap_v):
