@@ -315,9 +315,11 @@ def _own_conformal_starts(charts, indices):
     """{i: chart i's own conformal map} for the charts in ``indices`` whose conformal map has no flipped
     or collapsed triangle."""
     from uvbake.atlas.charting import conformal_factor
+    from uvbake.cancel import check_cancelled
 
     out = {}
     for i in indices:                                 # one iteration per chart left flipped
+        check_cancelled()                             # Ctrl-C / SIGTERM: stop between charts
         uv, logf = conformal_factor(charts[i].V, charts[i].F)
         if np.all(np.isfinite(logf)):
             out[i] = uv
