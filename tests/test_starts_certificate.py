@@ -42,13 +42,20 @@ def _dense_lambda_min(energy, uv):
     return np.linalg.eigvalsh(C.T @ H.toarray() @ C).min()
 
 
-def test_certificate_matches_dense_eigenvalues_at_a_minimum():
-    V, F = bumpy_disk(n=8)
+@pytest.mark.parametrize("path", ["lanczos", "dense"])
+def test_certificate_matches_dense_eigenvalues_at_a_minimum(path, monkeypatch):
+    import uvbake.flatten.solvers.certificate as certificate
+
+    V, F = bumpy_disk(n=8)                           # 128 unknowns: the dense path unless told otherwise
     r = uvbake.parameterize(V, F, alpha=0.5)
     unit = np.mean(np.linalg.norm(V[F[:, [1, 2, 0]]] - V[F], axis=2))
     E = DistortionEnergy((V - V.mean(axis=0)) / unit, F, alpha=0.5)
     uv = r.uv / unit
+    assert 2 * len(V) <= certificate.DENSE_MAX
+    if path == "lanczos":
+        monkeypatch.setattr(certificate, "DENSE_MAX", 12)
     cert = certify(E, uv)
+    assert cert.factorisations == (0 if path == "dense" else 1)
     dense = _dense_lambda_min(E, uv)
     assert cert.gauge_dim == 3
     assert cert.lambda_min > 0 and cert.is_local_minimum
@@ -57,14 +64,18 @@ def test_certificate_matches_dense_eigenvalues_at_a_minimum():
     assert r.lambda_min == pytest.approx(cert.lambda_min, rel=1e-6)
 
 
-def test_certificate_negative_at_a_constructed_saddle():
+def test_certificate_negative_at_a_constructed_saddle(monkeypatch):
     # The collapsed map uv = 0 is stationary (grad det and the angle term both vanish there), and
     # along any conformal direction the area term's curvature -2 alpha Hess(det) is negative: a saddle.
     V, F = bumpy_disk(n=8)
     E = DistortionEnergy(V, F, alpha=0.9)
     uv = np.zeros((len(V), 2))
     assert np.linalg.norm(E.gradient(uv)) == 0.0
+    import uvbake.flatten.solvers.certificate as certificate
+
     cert = certify(E, uv)
+    monkeypatch.setattr(certificate, "DENSE_MAX", 12)    # and by Lanczos
+    assert certify(E, uv).lambda_min == pytest.approx(cert.lambda_min, rel=1e-6)
     assert cert.lambda_min < 0 and not cert.is_local_minimum
     assert cert.lambda_min == pytest.approx(_dense_lambda_min(E, uv), rel=1e-6)
 
