@@ -114,3 +114,24 @@ def test_indefinite_matrices_are_rejected_by_superlu_as_by_cholmod(method):
     for M, expected in cases:
         assert (np.linalg.eigvalsh(M)[0] > 0) == expected    # the reference verdict
         assert is_positive_definite(sp.csc_matrix(M), method=method) == expected
+
+
+def test_the_default_thread_pool_runs_only_for_two_large_charts_or_more(monkeypatch):
+    import uvbake.flatten.solve as solve
+
+    charts = [bumpy_disk(n=8, seed=s) for s in range(3)]                   # 98 triangles each
+    pools = []
+
+    class Counting(ThreadPoolExecutor):
+        def __init__(self, *a, **k):
+            pools.append(k.get("max_workers"))
+            super().__init__(*a, **k)
+
+    monkeypatch.setattr(solve, "ThreadPoolExecutor", Counting)
+    serial = solve.parameterize_charts(charts, alpha=0.5)                 # small charts: solved in turn
+    assert pools == []
+    monkeypatch.setattr(solve, "POOL_MIN_FACES", len(charts[0][1]))      # now every chart counts as large
+    pooled = solve.parameterize_charts(charts, workers=2, alpha=0.5)
+    assert pools == [2]
+    for a, b in zip(serial, pooled):                                       # the same results either way
+        assert np.array_equal(a.uv, b.uv) and a.iterations == b.iterations
