@@ -95,8 +95,8 @@ def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
     shares = 0
     for _ in range(MAX_ROUNDS + MAX_LONG_ROUNDS):        # rounds: one split each
         check_cancelled()                                # Ctrl-C / SIGTERM: stop between rounds
-        i = _largest(charts, results, rect)
-        if i is not None and not _binding(charts, results, rect, i):
+        i, binding = _next_cut(charts, results, rect)
+        if i is not None and not binding:
             shares += 1                                  # a cut by area share: at most MAX_ROUNDS of them
             if shares > MAX_ROUNDS:
                 break
@@ -175,32 +175,25 @@ def _boxes_suffice(charts, results, boxes):
 
 
 def _largest(charts, results, rect=None):
-    """The chart to cut next: the longest, when its minimum-area rectangle's long side alone keeps the
-    atlas below BELOW_EFFICIENCY (a square holding a chart of length L packs at most area / L^2: a sphere's
-    twelve latitude bands, one label each, packed at 33 %); else the chart holding the most UV area,
-    when it holds at least MIN_SHARE of the atlas's. ``rect(uv, F)``: a chart's min_area_rect, when known."""
-    area, big, length = _sizes(charts, results, rect)
-    k = int(np.argmax(np.where(big, length, -1.0)))
-    if big[k] and BELOW_EFFICIENCY * length[k] ** 2 > area.sum():
-        return k
-    i = int(np.argmax(area))
-    return i if area[i] >= MIN_SHARE * area.sum() and big[i] else None
+    """The chart to cut next (see _next_cut), or None."""
+    return _next_cut(charts, results, rect)[0]
 
 
-def _sizes(charts, results, rect=None):
-    """Each chart's UV area, whether it has faces enough to cut (8), and its minimum-area rectangle's
-    long side."""
+def _next_cut(charts, results, rect=None):
+    """(chart to cut next or None, whether its length binds). The longest chart, when its minimum-area
+    rectangle's long side alone keeps the atlas below BELOW_EFFICIENCY (a square holding a chart of
+    length L packs at most area / L^2: a sphere's twelve latitude bands, one label each, packed at
+    33 %); else the chart holding the most UV area, when it holds at least MIN_SHARE of the atlas's.
+    Charts of under 8 triangles are never cut. ``rect(uv, F)``: a chart's min_area_rect, when known."""
     area = np.array([np.abs(signed_areas(r.uv, c.F)).sum() for c, r in zip(charts, results)])
     big = np.array([len(c.F) >= 8 for c in charts])
     rect = rect or (lambda uv, F: min_area_rect(np.asarray(uv)))
     length = np.array([rect(r.uv, c.F)[1] for c, r in zip(charts, results)])     # one rectangle per chart
-    return area, big, length
-
-
-def _binding(charts, results, rect, i):
-    """Whether chart ``i`` alone keeps the atlas below BELOW_EFFICIENCY by its length (see _largest)."""
-    area, _, length = _sizes(charts, results, rect)
-    return bool(BELOW_EFFICIENCY * length[i] ** 2 > area.sum())
+    k = int(np.argmax(np.where(big, length, -1.0)))
+    if big[k] and BELOW_EFFICIENCY * length[k] ** 2 > area.sum():
+        return k, True
+    i = int(np.argmax(area))
+    return (i if area[i] >= MIN_SHARE * area.sum() and big[i] else None), False
 
 
 def split_straight(chart: Chart, result: ParamResult,
