@@ -27,7 +27,6 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     (chart, seam length), or None when no tip is inside the chart."""
     from scipy.sparse.csgraph import dijkstra
 
-    from uvbake.mesh.cut import seam_costs
     from uvbake.mesh.topology import boundary_edges
 
     V, F = chart.V, chart.F
@@ -36,10 +35,7 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     tips = np.setdiff1d(np.asarray(tips, dtype=np.int64), bnd)
     if len(tips) == 0:
         return None
-    fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
-    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
-    cost = np.maximum(seam_costs(V, F, fi, fj, e[:, 0], e[:, 1]), 1e-12 * max(length.max(), 1e-300))
-    g = sp.coo_matrix((cost, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    e, hi, hj, length, g = _seam_graph(chart)
     dist, pred, src = dijkstra(g, directed=False, indices=bnd, min_only=True, return_predecessors=True)
     tips = tips[np.isfinite(dist[tips])]
     if len(tips) == 0:
@@ -54,6 +50,18 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     a = np.flatnonzero(on & (pred >= 0))
     cut = np.isin(e[:, 0] * n + e[:, 1], np.minimum(a, pred[a]) * n + np.maximum(a, pred[a]))
     return _opened(chart, cut, hi, hj), float(length[cut].sum())
+
+
+def _seam_graph(chart: Chart) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, sp.csr_matrix]:
+    """The chart's interior edges (face_adjacency's ``e``, half-edges ``hi``, ``hj``), their 3D lengths
+    and the sparse graph weighing each by its seam cost (:func:`uvbake.mesh.cut.seam_costs`)."""
+    from uvbake.mesh.cut import seam_costs
+
+    V, F, n = chart.V, chart.F, len(chart.V)
+    fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
+    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    cost = np.maximum(seam_costs(V, F, fi, fj, e[:, 0], e[:, 1]), 1e-12 * max(length.max(), 1e-300))
+    return e, hi, hj, length, sp.coo_matrix((cost, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
 
 
 def _opened(chart: Chart, cut: np.ndarray, hi: np.ndarray, hj: np.ndarray) -> Chart:
@@ -85,7 +93,6 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     when the chart has one loop (or none, or more than MAX_OPENED_LOOPS) or is not a disk afterwards."""
     from scipy.sparse.csgraph import dijkstra
 
-    from uvbake.mesh.cut import seam_costs
     from uvbake.mesh.topology import boundary_edges, topology
 
     V, F = chart.V, chart.F
@@ -93,7 +100,7 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     b = boundary_edges(F, n)
     if not len(b):
         return None
-    nl, loop = connected_components(sp.coo_matrix((np.ones(len(b)), (b[:, 0], b[:, 1])), shape=(n, n)),
+    _, loop = connected_components(sp.coo_matrix((np.ones(len(b)), (b[:, 0], b[:, 1])), shape=(n, n)),
                                     directed=False)
     on_loop = np.full(n, -1)
     verts = np.unique(b)
@@ -102,14 +109,11 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     if not 2 <= len(ids) <= MAX_OPENED_LOOPS:
         return None
     on_loop[verts] = loop_of                                   # loops numbered 0..k-1
-    fi, fj, e, hi, hj = face_adjacency(F, n, return_halfedges=True)
-    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
-    cost = np.maximum(seam_costs(V, F, fi, fj, e[:, 0], e[:, 1]), 1e-12 * max(length.max(), 1e-300))
-    g = sp.coo_matrix((cost, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    e, hi, hj, length, g = _seam_graph(chart)
     linked = np.zeros(len(ids), bool)
     linked[0] = True
     cut_keys = []
-    for _ in range(len(ids) - 1):                              # one shortest path per loop linked
+    while not linked.all():                                    # one shortest path per loop linked (at most 15)
         src = verts[linked[on_loop[verts]]]
         dist, pred = dijkstra(g, directed=False, indices=src, min_only=True, return_predecessors=True)[:2]
         far = verts[~linked[on_loop[verts]]]
