@@ -128,10 +128,13 @@ def test_the_default_thread_pool_runs_only_for_two_large_charts_or_more(monkeypa
             super().__init__(*a, **k)
 
     monkeypatch.setattr(solve, "ThreadPoolExecutor", Counting)
+    monkeypatch.setattr(solve.os, "cpu_count", lambda: 2)
     serial = solve.parameterize_charts(charts, alpha=0.5)                 # small charts: solved in turn
     assert pools == []
-    monkeypatch.setattr(solve, "POOL_MIN_FACES", len(charts[0][1]))      # now every chart counts as large
-    pooled = solve.parameterize_charts(charts, workers=2, alpha=0.5)
+    asked = solve.parameterize_charts(charts, workers=2, alpha=0.5)       # threads asked for: threads
     assert pools == [2]
-    for a, b in zip(serial, pooled):                                       # the same results either way
-        assert np.array_equal(a.uv, b.uv) and a.iterations == b.iterations
+    monkeypatch.setattr(solve, "POOL_MIN_FACES", len(charts[0][1]))      # now every chart counts as large
+    pooled = solve.parameterize_charts(charts, alpha=0.5)
+    assert pools == [2, 2]
+    for a, b, c in zip(serial, asked, pooled):                             # the same results either way
+        assert np.array_equal(a.uv, b.uv) and np.array_equal(a.uv, c.uv) and a.iterations == c.iterations

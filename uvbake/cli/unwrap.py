@@ -86,7 +86,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--max-iter", type=_typed(int, 0), default=DEFAULTS.max_iter,
                    help=f"iteration cap per chart (default {DEFAULTS.max_iter})")
     g.add_argument("--seed", type=_typed(int, 0, 2**32 - 1), default=DEFAULTS.seed, help=f"seed of --init random (default {DEFAULTS.seed})")
-    g.add_argument("--workers", type=_typed(int, 1), default=None, help="charts solved in parallel (default: CPU count)")
+    g.add_argument("--workers", type=_typed(int, 1), default=None, help="charts solved in parallel (default: the CPU count when two charts or more "
+                   "have 5000+ triangles, else one at a time)")
     g = p.add_argument_group("guarantees")
     g.add_argument("--no-auto-cut", action="store_true",
                    help="refuse closed charts and charts with handles instead of cutting them into disks")

@@ -311,8 +311,9 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
     charts : list of :class:`uvbake.mesh.charts.Chart` (or of (V, F) pairs)
     workers : int, optional
         Threads of the default executor (default: the number of CPUs, at most the number of charts).
-        The default executor runs only when two charts or more have POOL_MIN_FACES triangles; else
-        the charts are solved in turn in this thread (threads would only contend for the GIL).
+        Without ``workers``, the default executor runs only when two charts or more have
+        POOL_MIN_FACES triangles; else the charts are solved in turn in this thread (threads would
+        only contend for the GIL).
     progress : callable, optional
         Called as ``progress(done, total, result)`` after each chart finishes.
     starts : list of ((k,2) array or None), optional
@@ -338,6 +339,7 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
     items = [_chart_arrays(c, i) for i, c in enumerate(charts)]
     if workers is not None and (not _whole(workers) or workers < 1):
         raise InputError(f"workers={workers!r} must be a positive integer (threads solving charts)")
+    chosen = workers is not None
     workers = int(workers or min(os.cpu_count() or 1, max(len(items), 1)))
     results: list[ParamResult | None] = [None] * len(items)
     done = 0
@@ -353,7 +355,7 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
             for i in range(len(items))]
     # BLAS pools are process-wide: limit them once here, around every solve of this process
     with _one_blas_thread():
-        if executor is None and (workers <= 1 or len(items) <= 1 or _few_large(items)):
+        if executor is None and (workers <= 1 or len(items) <= 1 or (not chosen and _few_large(items))):
             for i, args in jobs:
                 finish(i, solve_chart(*args))
         else:
