@@ -220,5 +220,6 @@ def test_small_pieces_take_the_dense_fiedler_vector_the_iterative_one_approximat
     # the same generalized eigenvector up to sign and LOBPCG's tolerance (1e-5 on the residual)
     cos = abs(dense @ (mass * lobpcg)) / np.sqrt((dense @ (mass * dense)) * (lobpcg @ (mass * lobpcg)))
     assert cos == pytest.approx(1.0, abs=1e-4)
-    # M-orthogonal to the constants, as LOBPCG's is constrained to be
+    # M-orthogonal to the constants, as LOBPCG's is constrained to be; its sign fixed (largest entry > 0)
     assert abs(mass @ dense) <= 1e-9 * np.abs(mass * dense).sum()
+    assert dense[np.argmax(np.abs(dense))] > 0

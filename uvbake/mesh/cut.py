@@ -168,7 +168,8 @@ def _fiedler(m, fi, fj, w, mass):
         L = _laplacian(m, fi, fj, w / w.mean()).toarray()
         x = eigh(L, np.diag(mass / mass.mean()), subset_by_index=[1, 1])[1][:, 0]
         if np.all(np.isfinite(x)) and np.ptp(x) > 0:
-            return x
+            # LAPACK's sign is its own (it can differ between CPUs' kernels): the largest entry positive
+            return x if x[np.argmax(np.abs(x))] > 0 else -x
     elif m > 8:
         L = _laplacian(m, fi, fj, w / w.mean())
         M = sp.diags(mass / mass.mean()).tocsc()
