@@ -138,3 +138,84 @@ def test_the_default_thread_pool_runs_only_for_two_large_charts_or_more(monkeypa
     assert pools == [2, 2]
     for a, b, c in zip(serial, asked, pooled):                             # the same results either way
         assert np.array_equal(a.uv, b.uv) and np.array_equal(a.uv, c.uv) and a.iterations == c.iterations
+
+
+# ---- small charts solved together ------------------------------------------------------------------
+
+def _small_charts_with_starts():
+    from uvbake.atlas.charting import lscm
+
+    charts = [bumpy_disk(n=6, seed=s) for s in range(3)] + [cone(nu=10, nv=4), plane(nu=7, nv=6)]
+    charts[1] = (charts[1][0] * 7.0, charts[1][1])                          # another unit: its own frame
+    return charts, [lscm(V, F) for V, F in charts]
+
+
+def _singular_values(V, F, uv):
+    from uvbake.flatten.energy import jacobians, triangle_frames
+
+    _, Q, _ = triangle_frames(np.asarray(V, float), np.asarray(F))
+    return np.linalg.svd(jacobians(Q, np.asarray(F), uv), compute_uv=False)
+
+
+def test_small_charts_solved_together_reach_each_charts_own_minimum():
+    """F is a sum over triangles: the batch's minimiser is every chart's own (up to each chart's own
+    rotation and translation), its gradient norm bounds each chart's, and its certificate's lambda_min
+    is the least of the charts'."""
+    from uvbake.flatten import joint
+
+    charts, starts = _small_charts_with_starts()
+    options = SolveOptions(alpha=0.5)
+    assert joint.joint_groups([(V, F, "c") for V, F in charts], options, starts) == [[0, 1, 2, 3, 4]]
+    together = joint.solve_joint([(V, F, f"c{i}") for i, (V, F) in enumerate(charts)], options, starts)
+    alone = [solve_chart((V, F), options, s, checked=True) for (V, F), s in zip(charts, starts)]
+    for (V, F), t, a in zip(charts, together, alone):
+        assert t.converged and a.converged and t.grad_norm < options.tol and t.n_flipped == 0
+        assert t.extra["joint"]["charts"] == 5
+        assert t.energy == pytest.approx(a.energy, rel=1e-9, abs=1e-12)
+        assert t.energy_init == pytest.approx(a.energy_init, rel=1e-9)
+        # the same map up to a rigid motion: the Jacobians' singular values agree
+        assert np.allclose(_singular_values(V, F, t.uv), _singular_values(V, F, a.uv), rtol=1e-6, atol=1e-8)
+        assert t.is_local_minimum and t.lambda_min <= a.lambda_min * (1 + 1e-6) + 1e-12
+    assert together[0].lambda_min == pytest.approx(min(a.lambda_min for a in alone), rel=1e-5)
+
+
+def test_a_batch_small_enough_for_the_dense_certificate_sets_each_charts_gauge_aside():
+    from uvbake.atlas.charting import lscm
+    from uvbake.flatten import joint
+
+    charts = [plane(nu=3, nv=3, seed=s) for s in range(3)]                    # 9 vertices each: 54 unknowns
+    starts = [lscm(V, F) for V, F in charts]
+    options = SolveOptions(alpha=0.7)
+    together = joint.solve_joint([(V, F, "c") for V, F in charts], options, starts)
+    alone = [solve_chart((V, F), options, s, checked=True) for (V, F), s in zip(charts, starts)]
+    # 9 gauge directions set aside (3 per chart), not 3: the least eigenvalue is a chart's, not a zero
+    assert together[0].lambda_min == pytest.approx(min(a.lambda_min for a in alone), rel=1e-6)
+    assert together[0].lambda_min > 1e-6 and all(t.is_local_minimum for t in together)
+
+
+def test_only_small_charts_with_valid_starts_and_a_positive_alpha_are_batched(monkeypatch):
+    from uvbake.flatten import joint
+
+    charts, starts = _small_charts_with_starts()
+    items = [(V, F, "c") for V, F in charts]
+    flipped = starts[2] * [1.0, -1.0]                                        # a mirrored start: every triangle flipped
+    opts = SolveOptions(alpha=0.5)
+    assert joint.joint_groups(items, opts, starts[:2] + [flipped] + starts[3:]) == [[0, 1, 3, 4]]
+    assert joint.joint_groups(items, SolveOptions(alpha=0.0), starts) == []           # pinned gauge per chart
+    assert joint.joint_groups(items, SolveOptions(alpha=0.5, step="damped"), starts) == []
+    assert joint.joint_groups(items, opts, None) == []
+    monkeypatch.setattr(joint, "JOINT_MAX_FACES", 59)                     # the plane's 60 triangles: alone
+    monkeypatch.setattr(joint, "JOINT_FACES", 100)                         # a batch closes at 100 triangles
+    assert [len(F) for _, F in charts] == [50, 50, 50, 54, 60]
+    assert joint.joint_groups(items, opts, starts) == [[0, 1], [2, 3]]
+    monkeypatch.setattr(joint, "JOINT_FACES", 150)                         # the last batch of one chart: alone
+    assert joint.joint_groups(items, opts, starts) == [[0, 1, 2]]
+
+
+def test_batched_charts_give_the_same_bytes_serially_and_on_threads():
+    charts, starts = _small_charts_with_starts()
+    serial = parameterize_charts(charts, starts=starts, workers=1, checked=True, alpha=0.5)
+    threads = parameterize_charts(charts, starts=starts, workers=2, checked=True, alpha=0.5)
+    assert all("joint" in r.extra for r in serial)
+    for a, b in zip(serial, threads):
+        assert np.array_equal(a.uv, b.uv) and a.iterations == b.iterations

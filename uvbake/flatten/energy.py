@@ -97,14 +97,19 @@ class DistortionEnergy:
     fixed : (2n,) bool array, optional
         Unknowns held fixed (e.g. pinned vertices). Gradients and Hessians are then returned for the
         free unknowns only, in their order.
+    parts : (n,) int array, optional
+        The vertex's part (0..k-1), when the mesh is several charts solved as one problem (F is then
+        their sum; each part has its own translation and rotation gauge). None: one part.
     """
 
-    def __init__(self, V, F, *, alpha, weights=None, fixed=None):
+    def __init__(self, V, F, *, alpha, weights=None, fixed=None, parts=None):
         alpha = self._check_alpha(alpha)
         self.V = np.asarray(V, dtype=np.float64)
         self.F = np.asarray(F, dtype=np.int64)
         self.alpha = alpha
         self.n = len(self.V)
+        self.parts = None if parts is None else np.asarray(parts, dtype=np.int64)
+        self._part_count = None
         _, Q, self.area = triangle_frames(self.V, self.F)
         self.a = np.ascontiguousarray(Q[:, :, 0])
         self.b = np.ascontiguousarray(Q[:, :, 1])
@@ -355,6 +360,16 @@ class DistortionEnergy:
     def _scatter_gradient(self, g):
         return np.bincount(self._gslot, weights=g.ravel()[self._gkeep], minlength=self.n_free)
 
+    def center(self, y: np.ndarray) -> np.ndarray:
+        """``y`` (2n,) without its translation part: each part's mean (u, v) taken off its vertices."""
+        y = y.reshape(-1, 2)
+        if self.parts is None:
+            return (y - y.mean(axis=0)).ravel()
+        if self._part_count is None:
+            self._part_count = np.bincount(self.parts).astype(np.float64)
+        mean = np.stack([np.bincount(self.parts, weights=y[:, k]) for k in (0, 1)], axis=1) / self._part_count[:, None]
+        return (y - mean[self.parts]).ravel()
+
     # -- conversions between per-vertex UVs and the free-unknown vector --------------------------
     def to_vector(self, uv: np.ndarray) -> np.ndarray:
         return np.asarray(uv, dtype=np.float64).reshape(-1)[~self.fixed].copy()
@@ -366,8 +381,9 @@ class DistortionEnergy:
         return full.reshape(-1, 2)
 
 
-def optimal_scale(energy: DistortionEnergy, uv: np.ndarray) -> float:
-    """The uniform scale s > 0 minimising F(s * uv), in closed form.
+def optimal_scale(energy: DistortionEnergy, uv: np.ndarray, face_parts: np.ndarray | None = None):
+    """The uniform scale s > 0 minimising F(s * uv), in closed form; with ``face_parts`` (each
+    triangle's part, 0..k-1) the (k,) array of each part's own scale.
 
     det A scales with s^2 and D_angle with s^2, so with w = s^2,
     F(w) = alpha sum (w d_t - 1)^2 + (1 - alpha) w c, a quadratic in w whose minimiser is
@@ -376,6 +392,8 @@ def optimal_scale(energy: DistortionEnergy, uv: np.ndarray) -> float:
     """
     A11, A12, A21, A22 = energy._terms(uv)
     d = A11 * A22 - A12 * A21
+    if face_parts is not None:
+        return _part_scales(energy, d, (A11 - A22) ** 2 + (A12 + A21) ** 2, np.asarray(face_parts))
     c = float(np.dot(energy.w, (A11 - A22) ** 2 + (A12 + A21) ** 2))
     al = energy.alpha
     sum_d = float(np.dot(energy.w, d))
@@ -387,3 +405,18 @@ def optimal_scale(energy: DistortionEnergy, uv: np.ndarray) -> float:
     # fall back: match total unsigned UV area to the 3D area
     uv_area = float(np.dot(energy.area, np.abs(d)))
     return float(np.sqrt(energy.area.sum() / uv_area)) if uv_area > 0 else 1.0
+
+
+def _part_scales(energy: DistortionEnergy, d: np.ndarray, ang: np.ndarray, parts: np.ndarray) -> np.ndarray:
+    """optimal_scale of each part (det A ``d`` and D_angle ``ang`` per triangle), all parts at once."""
+    k = int(parts.max()) + 1 if len(parts) else 0
+    w, al = energy.w, energy.alpha
+    c = np.bincount(parts, weights=w * ang, minlength=k)
+    sum_d = np.bincount(parts, weights=w * d, minlength=k)
+    sum_d2 = np.bincount(parts, weights=w * d * d, minlength=k)
+    uv_area = np.bincount(parts, weights=energy.area * np.abs(d), minlength=k)
+    area = np.bincount(parts, weights=energy.area, minlength=k)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fit = (al * sum_d - 0.5 * (1.0 - al) * c) / (al * sum_d2)
+        by_area = np.where(uv_area > 0, area / uv_area, 1.0)
+    return np.sqrt(np.where((al > 0) & (sum_d2 > 0) & (fit > 0), fit, by_area))

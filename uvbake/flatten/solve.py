@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy, optimal_scale
+from uvbake.flatten.joint import joint_groups, solve_joint
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
@@ -351,18 +352,33 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
         if progress:
             progress(done, len(items), res)
 
-    jobs = [(i, (items[i], options, None if starts is None else starts[i], callback, checked))
-            for i in range(len(items))]
+    # small charts solved together (uvbake.flatten.joint); a job is a list of chart indices
+    groups = joint_groups(items, options, starts) if checked else []
+    grouped = {i for g in groups for i in g}
+    jobs = [[i] for i in range(len(items)) if i not in grouped] + groups
     # BLAS pools are process-wide: limit them once here, around every solve of this process
     with _one_blas_thread():
-        if executor is None and (workers <= 1 or len(items) <= 1 or (not chosen and _few_large(items))):
-            for i, args in jobs:
-                finish(i, solve_chart(*args))
+        if executor is None and (workers <= 1 or len(jobs) <= 1 or (not chosen and _few_large(items))):
+            for job in sorted(jobs):
+                for i, res in zip(job, _solve_job(items, job, options, starts, callback, checked)):
+                    finish(i, res)
         else:
-            # largest charts first so the pool stays busy
-            jobs.sort(key=lambda job: -len(items[job[0]][1]))
-            _run_pool(jobs, executor, workers, finish)
+            # largest jobs first so the pool stays busy
+            jobs.sort(key=lambda job: -sum(len(items[i][1]) for i in job))
+            _run_pool([(job, (items, job, options, starts, callback, checked)) for job in jobs], executor, workers,
+                      finish)
     return [r for r in results if r is not None]
+
+
+def _solve_job(items: list[tuple[np.ndarray, np.ndarray, str]], job: list[int], options: SolveOptions,
+               starts: Sequence[np.ndarray | None] | None, callback: Callback | None,
+               checked: bool) -> list[ParamResult]:
+    """The results of one job: a chart alone (:func:`solve_chart`) or a batch solved together."""
+    if len(job) == 1:
+        i = job[0]
+        return [solve_chart(items[i], options, None if starts is None else starts[i], callback, checked)]
+    assert starts is not None
+    return solve_joint([items[i] for i in job], options, [np.asarray(starts[i]) for i in job], callback)
 
 
 #: Charts of at least this many triangles keep a solving thread busy outside the GIL (sparse
@@ -379,15 +395,16 @@ def _few_large(items: list[tuple[np.ndarray, np.ndarray, str]]) -> bool:
     return sum(len(F) >= POOL_MIN_FACES for _, F, _ in items) < 2
 
 
-def _run_pool(jobs: list[tuple[int, tuple[Any, ...]]], executor: Executor | None, workers: int,
+def _run_pool(jobs: list[tuple[list[int], tuple[Any, ...]]], executor: Executor | None, workers: int,
               finish: Callable[[int, ParamResult], None]) -> None:
-    """:func:`solve_chart` of every job on ``executor`` (default a pool of ``workers`` threads)."""
+    """:func:`_solve_job` of every job on ``executor`` (default a pool of ``workers`` threads)."""
     with contextlib.ExitStack() as stack:
         pool = executor or stack.enter_context(ThreadPoolExecutor(max_workers=workers))
-        futures = {pool.submit(solve_chart, *args): i for i, args in jobs}
+        futures = {pool.submit(_solve_job, *args): job for job, args in jobs}
         try:
             for fut in as_completed(futures):
-                finish(futures[fut], fut.result())
+                for i, res in zip(futures[fut], fut.result()):
+                    finish(i, res)
         except BaseException:
             # a chart failed or the run was stopped (a callback raised, Ctrl-C): charts not
             # yet started are dropped instead of solved before the error reaches the caller

@@ -62,6 +62,8 @@ def gauge_basis(energy: DistortionEnergy, uv: np.ndarray) -> np.ndarray:
     (empty when unknowns are pinned, which fixes the gauge)."""
     if energy.fixed.any():
         return np.zeros((energy.n_free, 0))
+    if getattr(energy, "parts", None) is not None:
+        return _part_gauges(energy.parts, uv)
     c = uv - uv.mean(axis=0)
     n = len(uv)
     B = np.zeros((2 * n, 3))
@@ -73,6 +75,26 @@ def gauge_basis(energy: DistortionEnergy, uv: np.ndarray) -> np.ndarray:
         B = B[:, :2]
     # the columns are already orthogonal (c is centred): normalise them
     return B / np.linalg.norm(B, axis=0)
+
+
+def _part_gauges(parts: np.ndarray, uv: np.ndarray) -> Any:
+    """gauge_basis of a map of several parts (``parts``: each vertex's), as a sparse (2n, 3k) matrix:
+    each part's two translations and its rotation about its own centroid."""
+    import scipy.sparse as sp
+
+    n, k = len(uv), int(parts.max()) + 1
+    count = np.bincount(parts, minlength=k)
+    mean = np.stack([np.bincount(parts, weights=uv[:, j], minlength=k) for j in (0, 1)], axis=1) / count[:, None]
+    c = uv - mean[parts]
+    r = np.sqrt(np.bincount(parts, weights=(c * c).sum(axis=1), minlength=k))      # each rotation's norm
+    t = np.sqrt(count)[parts]
+    rot = np.where(r[parts] > 0, 1.0 / np.where(r > 0, r, 1.0)[parts], 0.0)       # a collapsed part: no rotation
+    rows = np.concatenate([2 * np.arange(n), 2 * np.arange(n) + 1, 2 * np.arange(n), 2 * np.arange(n) + 1])
+    cols = np.concatenate([3 * parts, 3 * parts + 1, 3 * parts + 2, 3 * parts + 2])
+    vals = np.concatenate([1.0 / t, 1.0 / t, -c[:, 1] * rot, c[:, 0] * rot])
+    B = sp.csc_matrix((vals, (rows, cols)), shape=(2 * n, 3 * k))
+    keep = np.column_stack([np.ones((k, 2), bool), r > 0]).ravel()
+    return B if keep.all() else B[:, np.flatnonzero(keep)]
 
 
 def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "auto", H: Any = None,
@@ -120,6 +142,7 @@ def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "a
 
 def _dense_certificate(H, N, hmax):
     n = H.shape[0]
+    N = N.toarray() if hasattr(N, "toarray") else N
     P = np.eye(n) - N @ N.T
     lam, vec = np.linalg.eigh(P @ H.toarray() @ P)
     # the gauge directions appear as zeros: set them aside by their overlap with the gauge

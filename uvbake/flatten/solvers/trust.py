@@ -167,8 +167,7 @@ class _State:
         the two translations, where M's tiny shift would otherwise amplify r's rounding."""
         y = self.solver.solve(r)
         if not self.pinned:
-            y = y.reshape(-1, 2)
-            y = (y - y.mean(axis=0)).ravel()
+            y = self.energy.center(y)
         return y
 
     @property
