@@ -381,9 +381,8 @@ class DistortionEnergy:
         return full.reshape(-1, 2)
 
 
-def optimal_scale(energy: DistortionEnergy, uv: np.ndarray, face_parts: np.ndarray | None = None):
-    """The uniform scale s > 0 minimising F(s * uv), in closed form; with ``face_parts`` (each
-    triangle's part, 0..k-1) the (k,) array of each part's own scale.
+def optimal_scale(energy: DistortionEnergy, uv: np.ndarray) -> float:
+    """The uniform scale s > 0 minimising F(s * uv), in closed form.
 
     det A scales with s^2 and D_angle with s^2, so with w = s^2,
     F(w) = alpha sum (w d_t - 1)^2 + (1 - alpha) w c, a quadratic in w whose minimiser is
@@ -392,8 +391,6 @@ def optimal_scale(energy: DistortionEnergy, uv: np.ndarray, face_parts: np.ndarr
     """
     A11, A12, A21, A22 = energy._terms(uv)
     d = A11 * A22 - A12 * A21
-    if face_parts is not None:
-        return _part_scales(energy, d, (A11 - A22) ** 2 + (A12 + A21) ** 2, np.asarray(face_parts))
     c = float(np.dot(energy.w, (A11 - A22) ** 2 + (A12 + A21) ** 2))
     al = energy.alpha
     sum_d = float(np.dot(energy.w, d))
@@ -407,11 +404,15 @@ def optimal_scale(energy: DistortionEnergy, uv: np.ndarray, face_parts: np.ndarr
     return float(np.sqrt(energy.area.sum() / uv_area)) if uv_area > 0 else 1.0
 
 
-def _part_scales(energy: DistortionEnergy, d: np.ndarray, ang: np.ndarray, parts: np.ndarray) -> np.ndarray:
-    """optimal_scale of each part (det A ``d`` and D_angle ``ang`` per triangle), all parts at once."""
+def optimal_scales(energy: DistortionEnergy, uv: np.ndarray, face_parts: np.ndarray) -> np.ndarray:
+    """:func:`optimal_scale` of each part of a map of several (``face_parts``: each triangle's part,
+    0..k-1), all parts at once: a (k,) array."""
+    A11, A12, A21, A22 = energy._terms(uv)
+    d = A11 * A22 - A12 * A21
+    parts = np.asarray(face_parts)
     k = int(parts.max()) + 1 if len(parts) else 0
     w, al = energy.w, energy.alpha
-    c = np.bincount(parts, weights=w * ang, minlength=k)
+    c = np.bincount(parts, weights=w * ((A11 - A22) ** 2 + (A12 + A21) ** 2), minlength=k)
     sum_d = np.bincount(parts, weights=w * d, minlength=k)
     sum_d2 = np.bincount(parts, weights=w * d * d, minlength=k)
     uv_area = np.bincount(parts, weights=energy.area * np.abs(d), minlength=k)

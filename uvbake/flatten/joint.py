@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from uvbake.cancel import check_cancelled
-from uvbake.flatten.energy import DistortionEnergy, optimal_scale
+from uvbake.flatten.energy import DistortionEnergy, optimal_scales
 from uvbake.flatten.options import SolveOptions
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import make_solver
@@ -98,7 +98,7 @@ def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[n
     F = np.concatenate([np.asarray(f, dtype=np.int64) + o for (_, f, _), o in zip(items, first)])
     energy = DistortionEnergy(V, F, alpha=options.alpha, parts=vpart)
     uv0 = np.concatenate([np.asarray(s, dtype=np.float64) for s in starts]) / units[vpart][:, None]
-    uv0 = uv0 * optimal_scale(energy, uv0, fpart)[vpart][:, None]
+    uv0 = uv0 * optimal_scales(energy, uv0, fpart)[vpart][:, None]
     f_init = _part_energies(energy, uv0, fpart, len(items))
     solver = make_solver(energy.empty_matrix(), method=options.linear_solver)
     x, info = _run_backend(energy, uv0, options, options.max_iter, callback, solver)

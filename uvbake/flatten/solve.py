@@ -352,10 +352,7 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
         if progress:
             progress(done, len(items), res)
 
-    # small charts solved together (uvbake.flatten.joint); a job is a list of chart indices
-    groups = joint_groups(items, options, starts) if checked else []
-    grouped = {i for g in groups for i in g}
-    jobs = [[i] for i in range(len(items)) if i not in grouped] + groups
+    jobs = _jobs(items, options, starts, checked)
     # BLAS pools are process-wide: limit them once here, around every solve of this process
     with _one_blas_thread():
         if executor is None and (workers <= 1 or len(jobs) <= 1 or (not chosen and _few_large(items))):
@@ -368,6 +365,15 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
             _run_pool([(job, (items, job, options, starts, callback, checked)) for job in jobs], executor, workers,
                       finish)
     return [r for r in results if r is not None]
+
+
+def _jobs(items: list[tuple[np.ndarray, np.ndarray, str]], options: SolveOptions,
+          starts: Sequence[np.ndarray | None] | None, checked: bool) -> list[list[int]]:
+    """The solves to run, each a list of chart indices: a chart alone, or small charts solved together
+    (:mod:`uvbake.flatten.joint`; only charts known to be disks, ``checked``)."""
+    groups = joint_groups(items, options, starts) if checked else []
+    grouped = {i for g in groups for i in g}
+    return [[i] for i in range(len(items)) if i not in grouped] + groups
 
 
 def _solve_job(items: list[tuple[np.ndarray, np.ndarray, str]], job: list[int], options: SolveOptions,
