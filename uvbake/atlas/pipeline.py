@@ -296,8 +296,10 @@ def _stage_solve(run):
     if opts["guarantee"]:
         from uvbake.atlas.guarantee import equalise_density, solve_valid
 
+        # the guarantee's solve fills holes with light fans (uvbake.flatten.holes): a hole's border cannot fold
+        kwargs = dict(run.solve_kwargs, options=run.solve_options.replace(fill_holes=True))
         run.charts, run.results, run.splits = solve_valid(
-            run.charts, run.starts, run.solve_kwargs, max_stretch=opts["max_stretch"], workers=opts["workers"],
+            run.charts, run.starts, kwargs, max_stretch=opts["max_stretch"], workers=opts["workers"],
             max_splits=opts["max_splits"], note=run.note)
         for c, r in zip(run.charts, run.results):
             equalise_density(c, r)

@@ -18,7 +18,8 @@ lower bound of the chart's own).
 
 Which charts join (:func:`joint_groups`): the trust region's step (``step="trust"``, ``backend="lm"``)
 at alpha > 0 (at alpha 0 each chart pins two vertices and is rescaled after), from a given start with
-every triangle positively oriented (no continuation stage), and of at most JOINT_MAX_FACES triangles; consecutive such charts fill a batch up to JOINT_FACES triangles.
+every triangle positively oriented (no continuation stage), and of at most JOINT_MAX_FACES triangles
+(with ``fill_holes``, charts without holes: a chart with holes is solved alone with its fans); consecutive such charts fill a batch up to JOINT_FACES triangles.
 Batches depend on the charts' order and sizes only, never on the machine.
 """
 
@@ -32,6 +33,7 @@ import numpy as np
 
 from uvbake.cancel import check_cancelled
 from uvbake.flatten.energy import DistortionEnergy, optimal_scales
+from uvbake.flatten.holes import holes
 from uvbake.flatten.options import SolveOptions
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import make_solver
@@ -59,7 +61,7 @@ def joint_groups(items: Sequence[Item], options: SolveOptions,
     cur: list[int] = []
     size = 0
     for i, ((_, F, _), s) in enumerate(zip(items, starts)):       # one iteration per chart
-        if not _joins(F, s):
+        if not _joins(F, s) or (options.fill_holes and holes(F) > 0):      # holes get fans: alone
             continue
         cur.append(i)
         size += len(F)

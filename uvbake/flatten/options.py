@@ -82,6 +82,10 @@ class SolveOptions:
         Solve invalid starts at alpha = 0.1 first (see :func:`uvbake.parameterize`).
     certificate : bool
         Compute the second-order certificate (``lambda_min``, ``is_local_minimum`` of the result).
+    fill_holes : bool
+        Solve with each hole filled by a lightly weighted fan of triangles, so its border cannot fold
+        over itself (:mod:`uvbake.flatten.holes`; alpha > 0, from a start with nothing flipped). The
+        atlas pipeline's default; off for the paper's plain F.
     """
 
     alpha: float = 0.5
@@ -95,6 +99,7 @@ class SolveOptions:
     continuation: bool = True
     injective: bool = False
     certificate: bool = True
+    fill_holes: bool = False
 
     def __post_init__(self) -> None:
         try:

@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy, optimal_scale
+from uvbake.flatten.holes import chart_energy, with_hole_fans
 from uvbake.flatten.joint import joint_groups, solve_joint
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
 from uvbake.flatten.solvers.certificate import certify
@@ -42,7 +43,7 @@ from uvbake.flatten.solvers.lm import levenberg_marquardt
 from uvbake.flatten.solvers.result import ParamResult, SolveResult
 from uvbake.flatten.solvers.trust import trust_region
 from uvbake.flatten.starts import farthest_boundary_pair, initial_map
-from uvbake.mesh.arrays import unit_scale
+from uvbake.mesh.arrays import signed_areas, unit_scale
 from uvbake.mesh.charts import Chart, check_chart
 
 #: alphas of the continuation stages of an invalid start (measured: docs/decisions/solver.md)
@@ -127,18 +128,9 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     alpha = options.alpha
     uv_start, init_name = _start_map(Vn, F, unit, start, options, name)
 
-    fixed = None
-    if alpha == 0.0:
-        p, q = farthest_boundary_pair(Vn, F)
-        fixed = np.zeros(2 * len(V), bool)
-        fixed[[2 * p, 2 * p + 1, 2 * q, 2 * q + 1]] = True
-    energy = DistortionEnergy(Vn, F, alpha=alpha, fixed=fixed)
-    # best uniform scale of the start (at alpha = 0: the scale of equal total area), so that the
-    # pins of the alpha = 0 gauge sit at the surface's own scale
-    uv_start = uv_start * optimal_scale(energy, uv_start)
-    if alpha == 0.0 and np.linalg.norm(uv_start[p] - uv_start[q]) == 0:
-        uv_start[q] += [np.linalg.norm(Vn[q] - Vn[p]), 0.0]
-    f_init = energy.value(uv_start)          # at the target alpha, before any continuation
+    m = len(F)
+    energy, uv_start = _energy_and_start(Vn, F, uv_start, options)
+    f_init = chart_energy(energy, uv_start, m)          # at the target alpha, before any continuation
     # one symbolic analysis per chart: the continuation's energy has the same pattern (no pins
     # when alpha > 0.1), and the certificate factors the same Hessian
     solver = make_solver(energy.empty_matrix(), method=options.linear_solver) if options.backend == "lm" else None
@@ -168,13 +160,15 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
     if stage is not None:
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
-    det = energy.determinants(uvn)
+    det = energy.determinants(uvn)[:m]
     cert = info.extra.get("certificate")      # the trust region's own second-order test, at uvn
     if cert is None and options.certificate:
         cert = certify(energy, uvn, linear_solver=options.linear_solver, solver=solver)
+    n = len(V)                                # the chart's own vertices (hole fans dropped)
+    flip_free = _flip_free_uv(energy, info, det, uv_start, unit)
     return ParamResult(
-        uv=uvn * unit,
-        energy=float(DistortionEnergy.value(energy, uvn)),
+        uv=uvn[:n] * unit,
+        energy=chart_energy(energy, uvn, m),
         grad_norm=float(grad_norm),
         iterations=int(iterations),
         converged=bool(grad_norm < options.tol),
@@ -191,8 +185,29 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         status=info.status,
         lambda_min=cert.lambda_min if cert else float("nan"),
         is_local_minimum=(bool(grad_norm < options.tol) and cert.is_local_minimum) if cert else None,
-        flip_free_uv=_flip_free_uv(energy, info, det, uv_start, unit),
+        flip_free_uv=None if flip_free is None else flip_free[:n],
     )
+
+
+def _energy_and_start(Vn: np.ndarray, F: np.ndarray, uv_start: np.ndarray,
+                      options: SolveOptions) -> tuple[DistortionEnergy, np.ndarray]:
+    """The chart's energy (two boundary vertices pinned at alpha = 0; holes filled with fans after the
+    chart's own vertices and triangles with ``fill_holes``) and the start at its best uniform scale."""
+    fixed = None
+    if options.alpha == 0.0:
+        p, q = farthest_boundary_pair(Vn, F)
+        fixed = np.zeros(2 * len(Vn), bool)
+        fixed[[2 * p, 2 * p + 1, 2 * q, 2 * q + 1]] = True
+    weights = None
+    if options.fill_holes and fixed is None and np.all(signed_areas(uv_start, F) > 0):
+        Vn, F, weights, uv_start = with_hole_fans(Vn, F, uv_start)
+    energy = DistortionEnergy(Vn, F, alpha=options.alpha, fixed=fixed, weights=weights)
+    # best uniform scale of the start (at alpha = 0: the scale of equal total area), so that the
+    # pins of the alpha = 0 gauge sit at the surface's own scale
+    uv_start = uv_start * optimal_scale(energy, uv_start)
+    if options.alpha == 0.0 and np.linalg.norm(uv_start[p] - uv_start[q]) == 0:
+        uv_start[q] += [np.linalg.norm(Vn[q] - Vn[p]), 0.0]
+    return energy, uv_start
 
 
 def _flip_free_uv(energy: DistortionEnergy, info: SolveResult, det: np.ndarray, uv_start: np.ndarray,
@@ -246,7 +261,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
                  seed: int = DEFAULTS.seed, uv0: np.ndarray | None = None, callback: Callback | None = None,
                  linear_solver: str = DEFAULTS.linear_solver, continuation: bool = DEFAULTS.continuation,
                  injective: bool = DEFAULTS.injective, certificate: bool = DEFAULTS.certificate,
-                 name: str = "chart 0") -> ParamResult:
+                 fill_holes: bool = DEFAULTS.fill_holes, name: str = "chart 0") -> ParamResult:
     """Flatten one chart (a connected disk with holes) by minimising the paper's F.
 
     Parameters
@@ -284,6 +299,9 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
         Compute the second-order certificate (``lambda_min``, ``is_local_minimum``): the smallest
         Hessian eigenvalue off the rigid-motion gauge, by shift-invert Lanczos
         (:mod:`uvbake.flatten.solvers.certificate`). False leaves them NaN / None.
+    fill_holes : bool
+        Solve with each hole filled by a lightly weighted fan of triangles (:mod:`uvbake.flatten.holes`),
+        so a hole's border cannot fold over itself; the result holds the chart's own vertices only.
 
     Returns
     -------
@@ -293,7 +311,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
     """
     options = SolveOptions(alpha=alpha, init=init, backend=backend, step=step, tol=tol, max_iter=max_iter, seed=seed,
                            linear_solver=linear_solver, continuation=continuation, injective=injective,
-                           certificate=certificate)
+                           certificate=certificate, fill_holes=fill_holes)
     if callback is not None and not callable(callback):
         raise InputError(f"callback={callback!r} is not callable; pass a function or None")
     with _one_blas_thread():

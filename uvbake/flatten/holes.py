@@ -1,0 +1,97 @@
+"""A chart's holes filled with light triangles for the solve, so their borders cannot fold over.
+
+A free boundary lets a hole shrink where the energy gains by it, and its border can then cross
+itself: the spherical cap of ``sample_scenes`` (two holes) solved at alpha 0.3 overlapped itself in
+22 pairs of triangles and at alpha 0.5 in 4, all along one hole. Each hole is filled for the solve by
+a fan of triangles from a vertex at the mean of its border (in 3D and in the start map), weighed
+HOLE_WEIGHT in F: an overlap at the hole would flip a fan triangle, which F then pays for like any
+flip, while the fan's pull on the chart stays small. Only the chart's own triangles are reported (UVs,
+F, flips); the fan vertices are dropped after the solve. A lightweight form of the scaffold of Jiang
+et al., "Simplicial complex augmentation framework for bijective maps" (SIGGRAPH Asia 2017), which
+meshes the whole exterior.
+
+The outer border is the longest loop in 3D; a hole whose fan is not positively oriented in the start
+map (a border not star-shaped about its mean) is left open.
+
+Measured on the cap (``docs/decisions/atlas-speed.md``): weight 0.1 leaves no overlap at alpha 0.1 to
+0.9, raises the least texel share (alpha 0.5: 0.096 -> 0.261) and costs 0.1-0.3 % of F; 0.01 left 3
+overlapping pairs at alpha 0.5; 0.3 raised F 0.5 % and doubled the iterations at alpha 0.9.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from uvbake.mesh.arrays import signed_areas, triangle_areas
+
+if TYPE_CHECKING:
+    from uvbake.flatten.energy import DistortionEnergy
+
+#: Weight of a fan triangle in F (a chart triangle's is 1).
+HOLE_WEIGHT = 0.1
+
+
+def holes(F: np.ndarray) -> int:
+    """Holes of a disk with holes (boundary loops less one), from its Euler characteristic."""
+    F = np.asarray(F, dtype=np.int64)
+    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    n_edges = len(np.unique(e[:, 0] * (int(F.max()) + 1) + e[:, 1])) if len(F) else 0
+    return max(0, 1 - (len(np.unique(F)) - n_edges + len(F)))
+
+
+def hole_fans(V: np.ndarray, F: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The fans filling the holes of the chart (V, F) whose fan is positive in ``start``: (fan vertices
+    (h,3), their start UVs (h,2), fan triangles (k,3) indexing the chart's vertices then the fan
+    vertices), or None when no hole is filled."""
+    n = len(V)
+    he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    key, twin = he[:, 0] * n + he[:, 1], he[:, 1] * n + he[:, 0]
+    border = he[~np.isin(key, twin)]                   # half-edges without a twin: the chart on their left
+    if len(border) == 0:
+        return None
+    _, loop_of = connected_components(sp.coo_matrix((np.ones(len(border)), (border[:, 0], border[:, 1])),
+                                                    shape=(n, n)), directed=False)
+    loop = loop_of[border[:, 0]]
+    ids, loop = np.unique(loop, return_inverse=True)
+    if len(ids) < 2:
+        return None
+    length = np.bincount(loop, weights=np.linalg.norm(V[border[:, 0]] - V[border[:, 1]], axis=1))
+    hole = np.ones(len(ids), bool)
+    hole[int(np.argmax(length))] = False               # the outer border
+    count = np.bincount(loop).astype(np.float64)
+    centre = np.stack([np.bincount(loop, weights=V[border[:, 0], k]) for k in range(3)], axis=1) / count[:, None]
+    centre_uv = np.stack([np.bincount(loop, weights=start[border[:, 0], k]) for k in range(2)], axis=1) / count[:, None]
+    # the fan triangle of border half-edge (a, b): (b, a, centre), oriented as the chart's triangles
+    fans = np.column_stack([border[:, 1], border[:, 0], n + loop])
+    uv = np.concatenate([start, centre_uv])
+    xyz = np.concatenate([V, centre])
+    bad = (signed_areas(uv, fans) <= 0) | (triangle_areas(xyz, fans) <= 0)
+    hole &= np.bincount(loop, weights=bad, minlength=len(ids)) == 0
+    if not hole.any():
+        return None
+    new = np.cumsum(hole) - 1                          # fan vertex index among the filled holes
+    keep = hole[loop]
+    fans = np.column_stack([border[keep, 1], border[keep, 0], n + new[loop[keep]]])
+    return centre[hole], centre_uv[hole], fans
+
+
+def with_hole_fans(V: np.ndarray, F: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None,
+                                                                             np.ndarray]:
+    """(V, F, weights, start) of the chart with its holes filled (see hole_fans); the chart's own
+    vertices and triangles come first. Unchanged, with weights None, when no hole is filled."""
+    fans = hole_fans(V, F, start)
+    if fans is None:
+        return V, F, None, start
+    Vh, Sh, Fh = fans
+    w = np.concatenate([np.ones(len(F)), np.full(len(Fh), HOLE_WEIGHT)])
+    return np.concatenate([V, Vh]), np.concatenate([F, Fh]), w, np.concatenate([start, Sh])
+
+
+def chart_energy(energy: DistortionEnergy, uv: np.ndarray, m: int) -> float:
+    """F of the chart's own ``m`` triangles (the first ones) at ``uv``."""
+    d_area, d_angle = energy.per_triangle(uv)
+    return float(np.dot(energy.w[:m], (energy.alpha * d_area + (1.0 - energy.alpha) * d_angle)[:m]))
