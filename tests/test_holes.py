@@ -80,3 +80,17 @@ def test_filled_holes_keep_the_sphere_caps_hole_from_folding_over():
     Vn, unit = unit_scale(V, F)
     assert filled.energy == pytest.approx(DistortionEnergy(Vn, F, alpha=0.5).value(filled.uv / unit), rel=1e-12)
     assert plain.energy <= filled.energy <= 1.01 * plain.energy
+
+
+def test_the_atlas_pipeline_fills_holes_and_paper_mode_does_not():
+    """unwrap's guarantee solve fills holes: the cap stays one valid chart at alpha 0.5, with no
+    overlap split (before: split in two, then cut for packing, 5 charts). ``guarantee=False`` (--paper)
+    solves the paper's plain F, whose map of the cap overlaps itself."""
+    import uvbake
+
+    path = str(ROOT / "sample_scenes" / "sphere_cap.ply")
+    res = uvbake.unwrap(path, alpha=0.5)
+    assert res.report["charts_final"] == 1 and res.report["valid"]
+    assert not [s for s in res.report["splits"] if s.get("reason") == "overlap"]
+    paper = uvbake.unwrap(path, alpha=0.5, guarantee=False)
+    assert not paper.report["valid"]
