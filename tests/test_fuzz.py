@@ -198,6 +198,9 @@ options = st.fixed_dictionaries({}, optional={
          opts={"tol": 10**30})
 @example(mesh=(np.array([[0., 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0]]), np.array([[0, 2, 3], [0, 3, 1]])),
          opts={"tol": 10**400, "alpha": 10**400})
+# and a max_iter past nlopt's C int evaluation cap for the L-BFGS backend
+@example(mesh=(np.array([[0., 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0]]), np.array([[0, 2, 3], [0, 3, 1]])),
+         opts={"init": "random", "max_iter": 10**30, "backend": "lbfgs"})
 def test_parameterize_returns_a_result_or_a_uvbake_error(mesh, opts):
     V, F = mesh
     opts.setdefault("max_iter", 30)

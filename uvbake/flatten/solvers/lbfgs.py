@@ -74,6 +74,10 @@ SCALE_MAX = 1e12
 REFRESH_EVERY = 50
 
 
+#: nlopt's evaluation cap is a C int: a larger max_iter (a user's "no limit") is capped here.
+NLOPT_MAX_EVAL = 2**31 - 1
+
+
 def lbfgs(energy: DistortionEnergy, x0: ArrayLike, *, uv_fixed: ArrayLike, tol: float = 1e-8, max_iter: int = 1000,
           callback: Callable[[dict[str, Any]], bool | None] | None = None, vector_storage: int | None = None,
           max_eval: int | None = None, restarts: int = 50, precondition: str | None = None,
@@ -189,7 +193,7 @@ def lbfgs(energy: DistortionEnergy, x0: ArrayLike, *, uv_fixed: ArrayLike, tol: 
         opt.set_ftol_abs(0.0)
         opt.set_xtol_rel(0.0)
         opt.set_xtol_abs(0.0)
-        opt.set_maxeval(max(1, max_eval - st["ev"] + 1))
+        opt.set_maxeval(min(max(1, max_eval - st["ev"] + 1), NLOPT_MAX_EVAL))
         st.pop("refresh", None)
         try:
             opt.optimize(np.zeros(k))
