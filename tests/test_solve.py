@@ -219,3 +219,22 @@ def test_batched_charts_give_the_same_bytes_serially_and_on_threads():
     assert all("joint" in r.extra for r in serial)
     for a, b in zip(serial, threads):
         assert np.array_equal(a.uv, b.uv) and a.iterations == b.iterations
+
+
+def test_a_batch_with_a_degenerate_triangle_is_solved_chart_by_chart(monkeypatch):
+    """A chart whose F is not finite at its start (a triangle of zero 3D area) must not stall the
+    charts batched with it: the batch falls back to one solve per chart, with the same results."""
+    import uvbake.flatten.solve as solve
+
+    charts, starts = _small_charts_with_starts()
+    V, F = charts[4]
+    V = V.copy()
+    V[F[0, 2]] = 0.5 * (V[F[0, 0]] + V[F[0, 1]])                          # triangle 0 collapses onto its edge
+    charts[4] = (V, F)
+    alone = []
+    monkeypatch.setattr(solve, "solve_chart", lambda *a, **k: alone.append(1) or solve_chart(*a, **k))
+    got = solve.parameterize_charts(charts, starts=starts, workers=1, checked=True, alpha=0.5)
+    assert len(alone) == 5                                                 # the batch fell back
+    for (Vc, Fc), s, r in zip(charts[:4], starts[:4], got[:4]):
+        ref = solve_chart((Vc, Fc), SolveOptions(alpha=0.5), s, checked=True)
+        assert np.array_equal(r.uv, ref.uv) and "joint" not in r.extra

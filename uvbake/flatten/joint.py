@@ -82,9 +82,10 @@ def _joins(F: np.ndarray, start: np.ndarray | None) -> bool:
 
 
 def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[np.ndarray],
-                callback: Any = None) -> list[ParamResult]:
+                callback: Any = None) -> list[ParamResult] | None:
     """The charts ``items`` ((V, F, name) each, disks with holes) solved together from ``starts``
-    (see the module's docstring): one ParamResult per chart, in order."""
+    (see the module's docstring): one ParamResult per chart, in order; None when F is not finite at
+    the start for some chart (a degenerate triangle): the caller then solves them one by one."""
     from uvbake.flatten.solve import _flip_free_uv, _run_backend
 
     t0 = time.perf_counter()
@@ -102,6 +103,8 @@ def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[n
     uv0 = np.concatenate([np.asarray(s, dtype=np.float64) for s in starts]) / units[vpart][:, None]
     uv0 = uv0 * optimal_scales(energy, uv0, fpart)[vpart][:, None]
     f_init = _part_energies(energy, uv0, fpart, len(items))
+    if not np.all(np.isfinite(f_init)) or not np.all(np.isfinite(uv0)):
+        return None                               # one chart's non-finite F would stall the whole batch
     solver = make_solver(energy.empty_matrix(), method=options.linear_solver)
     x, info = _run_backend(energy, uv0, options, options.max_iter, callback, solver)
     uvn = energy.to_uv(x, uv0)

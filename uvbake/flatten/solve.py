@@ -402,7 +402,10 @@ def _solve_job(items: list[tuple[np.ndarray, np.ndarray, str]], job: list[int], 
         i = job[0]
         return [solve_chart(items[i], options, None if starts is None else starts[i], callback, checked)]
     assert starts is not None
-    return solve_joint([items[i] for i in job], options, [np.asarray(starts[i]) for i in job], callback)
+    together = solve_joint([items[i] for i in job], options, [np.asarray(starts[i]) for i in job], callback)
+    if together is not None:
+        return together
+    return [solve_chart(items[i], options, starts[i], callback, checked) for i in job]
 
 
 #: Charts of at least this many triangles keep a solving thread busy outside the GIL (sparse
