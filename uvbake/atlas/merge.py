@@ -152,8 +152,8 @@ def join_charts(a: Chart, b: Chart, cache: dict | None = None) -> Chart | None:
     n = int(h[:, 3:].max()) + 1
     ha, hb = h[h[:, 0] == 0], h[h[:, 0] == 1]
     _, ia, ib = np.intersect1d(ha[:, 3] * n + ha[:, 4], hb[:, 4] * n + hb[:, 3], return_indices=True)
-    if not len(ia):
-        return None
+    if not len(ia) or len(ia) == len(ha) == len(hb):
+        return None                                    # nothing shared, or all: the two would close a surface
     na = len(a.V)
     # a's edge (x, y) is b's (y, x): weld a's x with b's y and a's y with b's x
     u = np.concatenate([ha[ia, 1], ha[ia, 2]])
