@@ -11,15 +11,16 @@ Each chart keeps its own frame (unit mean edge length, :func:`uvbake.mesh.arrays
 start's optimal scale, and its own translation and rotation gauge (``DistortionEnergy(parts=)``).
 The trust region then runs on the sum: one trust radius, so a batch takes about as many iterations
 as its slowest chart, and a per-iteration callback is called once per iteration of the batch (its
-dict is the batch's; returning True stops the batch). What a chart reports of its own: UVs, energy, gradient norm, flips and
-energies at the start; what it shares with its batch (``extra["joint"]``): iterations, history, the
-stop reason and the second-order certificate (lambda_min is the least of the batch's charts', so a
-lower bound of the chart's own).
+dict is the batch's; returning True stops the batch). What a chart reports of its own: UVs, energy,
+gradient norm, flips and energy at the start; what it shares with its batch (``extra["joint"]``):
+iterations, history, the stop reason and the second-order certificate (lambda_min is the least of
+the batch's charts', so a lower bound of the chart's own).
 
 Which charts join (:func:`joint_groups`): the trust region's step (``step="trust"``, ``backend="lm"``)
 at alpha > 0 (at alpha 0 each chart pins two vertices and is rescaled after), from a given start with
 every triangle positively oriented (no continuation stage), and of at most JOINT_MAX_FACES triangles
-(with ``fill_holes``, charts without holes: a chart with holes is solved alone with its fans); consecutive such charts fill a batch up to JOINT_FACES triangles.
+(with ``fill_holes``, charts without holes: a chart with holes is solved alone with its fans);
+consecutive such charts fill a batch up to JOINT_FACES triangles.
 Batches depend on the charts' order and sizes only, never on the machine.
 """
 
@@ -94,6 +95,7 @@ def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[n
     nv = np.array([len(V) for V, _, _ in items])
     nf = np.array([len(F) for _, F, _ in items])
     first = np.concatenate([[0], np.cumsum(nv)[:-1]])
+    ffirst = np.concatenate([[0], np.cumsum(nf)])
     units = np.array([u for _, u in frames])
     vpart = np.repeat(np.arange(len(items)), nv)
     fpart = np.repeat(np.arange(len(items)), nf)
@@ -124,7 +126,7 @@ def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[n
     out = []
     for k, (_, _, name) in enumerate(items):                          # one iteration per chart
         v = slice(first[k], first[k] + nv[k])
-        fk = slice(int(nf[:k].sum()), int(nf[:k + 1].sum()))
+        fk = slice(int(ffirst[k]), int(ffirst[k + 1]))
         ff = _flip_free_uv(energy, info, det[fk], uv0, 1.0)
         out.append(ParamResult(
             uv=uvn[v] * units[k], energy=float(f[k]), grad_norm=float(gnorm[k]), iterations=int(info.iterations),
