@@ -47,12 +47,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike
-from scipy.sparse.csgraph import connected_components
 
 from uvbake.flatten.energy import triangle_frames
 from uvbake.mesh.arrays import signed_areas
+from uvbake.mesh.graph import components
 
 
 def corners(uv: ArrayLike, F: np.ndarray | None) -> np.ndarray:
@@ -240,8 +239,7 @@ def chart_ids(F: np.ndarray, uv: ArrayLike) -> np.ndarray:
     m = len(F)
     cut, f0, f1, _ = cut_edges(F, uv)
     keep = ~cut
-    g = sp.coo_matrix((np.ones(int(keep.sum())), (f0[keep], f1[keep])), shape=(m, m))
-    _, labels = connected_components(g, directed=False)
+    _, labels = components(m, f0[keep], f1[keep])
     return labels.astype(np.int64)
 
 

@@ -28,12 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
-from scipy.sparse.csgraph import connected_components
 
 from uvbake.atlas.opening import open_holes, slit
 from uvbake.errors import ChartError, InputError
 from uvbake.mesh.arrays import triangle_areas, unit_normals
 from uvbake.mesh.charts import Chart, check_chart, split_charts
+from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency
 
 #: Default distortion budget (area factor within [1/4, 4] of the chart's mean); see docs/decisions/atlas.md.
@@ -112,8 +112,7 @@ def _crease_parts(chart: Chart) -> list[Chart]:
     nrm = unit_normals(chart.V, F)
     smooth = np.einsum("ij,ij->i", nrm[fi], nrm[fj]) > np.cos(CREASE_SPLIT)
     m = len(F)
-    nc, comp = connected_components(sp.coo_matrix((np.ones(int(smooth.sum())), (fi[smooth], fj[smooth])),
-                                                  shape=(m, m)), directed=False)
+    nc, comp = components(m, fi[smooth], fj[smooth])
     if nc == 1:
         return [chart]
     lab = _absorb_slivers(F, n, comp, triangle_areas(chart.V, F), SLIVER_SHARE)
@@ -132,8 +131,7 @@ def sub_charts(chart: Chart, sub_labels: ArrayLike) -> list[Chart]:
     lab = np.asarray(sub_labels, dtype=np.int64)
     fi, fj, _, hi, hj = face_adjacency(F, n, return_halfedges=True)
     same = lab[fi] == lab[fj]
-    nc, comp = connected_components(sp.coo_matrix((np.ones(int(same.sum())), (fi[same], fj[same])),
-                                                  shape=(m, m)), directed=False)
+    nc, comp = components(m, fi[same], fj[same])
     from uvbake.mesh.cut import _corner_fans
 
     fan = _corner_fans(F, n, hi[same], hj[same]).reshape(-1, 3)
@@ -293,8 +291,7 @@ def _absorb_slivers(F, n, comp_labels, area, min_share):
     lab = comp_labels.copy()
     for _ in range(4):                                  # a few passes settle chains of slivers
         same = lab[fi] == lab[fj]
-        nc, comp = connected_components(sp.coo_matrix((np.ones(int(same.sum())), (fi[same], fj[same])),
-                                                      shape=(m, m)), directed=False)
+        nc, comp = components(m, fi[same], fj[same])
         size = np.bincount(comp, weights=area, minlength=nc)
         cnt = np.bincount(comp, minlength=nc)
         small = (size < min_share * area.sum()) | (cnt < MIN_PIECE_FACES)

@@ -12,10 +12,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from uvbake.mesh.charts import Chart
+from uvbake.mesh.graph import components
 
 if TYPE_CHECKING:
     from uvbake.atlas.charting import _Charting
@@ -158,8 +157,7 @@ def join_charts(a: Chart, b: Chart, cache: dict | None = None) -> Chart | None:
     # a's edge (x, y) is b's (y, x): weld a's x with b's y and a's y with b's x
     u = np.concatenate([ha[ia, 1], ha[ia, 2]])
     v = np.concatenate([hb[ib, 2], hb[ib, 1]]) + na
-    g = sp.coo_matrix((np.ones(len(u)), (u, v)), shape=(na + len(b.V),) * 2)
-    nc, comp = connected_components(g, directed=False)
+    nc, comp = components(na + len(b.V), u, v)
     # a weld joining two vertices of one chart would pinch it (or collapse an edge): not a merge
     if np.bincount(comp[:na], minlength=nc).max() > 1 or np.bincount(comp[na:], minlength=nc).max() > 1:
         return None

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from uvbake.mesh.charts import Chart
+from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency
 
 
@@ -100,8 +100,7 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     b = boundary_edges(F, n)
     if not len(b):
         return None
-    _, loop = connected_components(sp.coo_matrix((np.ones(len(b)), (b[:, 0], b[:, 1])), shape=(n, n)),
-                                    directed=False)
+    _, loop = components(n, b[:, 0], b[:, 1])
     on_loop = np.full(n, -1)
     verts = np.unique(b)
     on_loop[verts] = loop[verts]

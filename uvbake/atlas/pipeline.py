@@ -397,16 +397,14 @@ def _load(source, face_labels, repair, weld):
 
 def _count_pieces(F, n_vertices, labels):
     """Edge-connected pieces of each label (the charts before any cut), counted without building them."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from uvbake.mesh.graph import components
 
     fi, fj, _ = face_adjacency(F, n_vertices)
     if labels is not None:
         same = np.asarray(labels)[fi] == np.asarray(labels)[fj]
         fi, fj = fi[same], fj[same]
     m = len(F)
-    return int(connected_components(coo_matrix((np.ones(len(fi), np.int8), (fi, fj)), shape=(m, m)),
-                                    directed=False)[0])
+    return components(m, fi, fj)[0]
 
 
 def _pack_and_validate(run, pack_options):

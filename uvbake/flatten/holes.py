@@ -24,10 +24,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from uvbake.mesh.arrays import signed_areas, triangle_areas
+from uvbake.mesh.graph import components
 
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
@@ -60,8 +59,7 @@ def hole_fans(V: np.ndarray, F: np.ndarray, start: np.ndarray) -> tuple[np.ndarr
     border = he[~np.isin(key, twin)]                   # half-edges without a twin: the chart on their left
     if len(border) == 0:
         return None
-    _, loop_of = connected_components(sp.coo_matrix((np.ones(len(border)), (border[:, 0], border[:, 1])),
-                                                    shape=(n, n)), directed=False)
+    _, loop_of = components(n, border[:, 0], border[:, 1])
     loop = loop_of[border[:, 0]]
     ids, loop = np.unique(loop, return_inverse=True)
     if len(ids) < 2:

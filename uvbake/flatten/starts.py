@@ -239,11 +239,10 @@ def _cycle_order(nxt, start):
 
 def _reach(nxt, start, members):
     """Mask over ``members`` of those on the cycle through ``start`` (connected components)."""
-    from scipy.sparse.csgraph import connected_components
+    from uvbake.mesh.graph import components
 
     n = len(nxt)
-    g = sp.coo_matrix((np.ones(len(members)), (members, nxt[members])), shape=(n, n))
-    _, lab = connected_components(g, directed=False)
+    _, lab = components(n, members, nxt[members])
     return lab[members] == lab[start]
 
 

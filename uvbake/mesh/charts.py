@@ -10,12 +10,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike
-from scipy.sparse.csgraph import connected_components
 
 from uvbake.errors import ChartError, InputError, NotDiskError
 from uvbake.mesh.arrays import _list, check_arrays, unit_exponent
+from uvbake.mesh.graph import components
 from uvbake.mesh.topology import Topology, face_adjacency, nonmanifold_vertices, topology
 
 
@@ -133,8 +132,7 @@ def split_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
     # faces are adjacent when they share an edge and a label
     fi, fj, _ = face_adjacency(F, len(V))
     keep = labels[fi] == labels[fj]
-    g = sp.coo_matrix((np.ones(int(keep.sum())), (fi[keep], fj[keep])), shape=(m, m))
-    _, comp = connected_components(g, directed=False)
+    _, comp = components(m, fi[keep], fj[keep])
     # order charts by (label, first face)
     first = np.full(comp.max() + 1, m)
     np.minimum.at(first, comp, np.arange(m))

@@ -25,10 +25,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
-from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.sparse.csgraph import dijkstra
 
 from uvbake.errors import ChartError, InputError
 from uvbake.mesh.arrays import _list, check_arrays, triangle_areas, unit_normals
+from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency, topology
 
 __all__ = ["bisect", "split_where", "cut_to_disks", "seam_length"]
@@ -65,8 +66,7 @@ def _corner_fans(F, n, i, j):
     same_dir = va[j] == va[i]
     rows = np.concatenate([i, nxt[i]])
     cols = np.concatenate([np.where(same_dir, j, nxt[j]), np.where(same_dir, nxt[j], j)])
-    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
-    return connected_components(g, directed=False)[1]
+    return components(3 * m, rows, cols)[1]
 
 
 def _edge_lengths(V, ea, eb):
@@ -259,8 +259,7 @@ def _make_valid(F, n, labels, fi, fj, hi, hj, max_rounds=100):
         changed = False
         # 1. each side keeps its largest edge-connected piece; stray pieces change side
         same = labels[fi] == labels[fj]
-        g = sp.coo_matrix((np.ones(int(same.sum())), (fi[same], fj[same])), shape=(m, m))
-        nc, comp = connected_components(g, directed=False)
+        nc, comp = components(m, fi[same], fj[same])
         if nc > 2:
             size = np.bincount(comp, minlength=nc)
             first = np.full(nc, m)
@@ -307,8 +306,7 @@ def _prepare(V: ArrayLike, F: ArrayLike, where: str) -> tuple[np.ndarray, ...]:
         raise InputError(f"{where}: a chart of {m} triangle cannot be split; pass at least two triangles")
     n = len(V)
     fi, fj, ea, eb, hi, hj = _dual_edges(F, n)
-    nc, comp = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(m, m)),
-                                    directed=False)
+    nc, comp = components(m, fi, fj)
     if nc > 1:
         other = np.flatnonzero(comp != comp[0])
         raise InputError(f"{where}: the chart has {nc} edge-connected pieces (triangles {_list(other)} are "
@@ -459,8 +457,7 @@ def cut_to_disks(V: ArrayLike, F: ArrayLike, *, max_charts: int = 64, manifold: 
     fi, fj, ea, eb, hi, hj = _dual_edges(F, n)
     if not manifold:
         _check_manifold(F, n)
-    _, labels = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(m, m)),
-                                      directed=False)
+    _, labels = components(m, fi, fj)
     labels = labels.astype(np.int64)
     todo = list(range(labels.max() + 1))
     next_label = labels.max() + 1

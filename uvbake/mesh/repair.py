@@ -40,11 +40,12 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
-from scipy.sparse.csgraph import breadth_first_order, connected_components
+from scipy.sparse.csgraph import breadth_first_order
 
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import _list
 from uvbake.mesh.cut import _corner_fans
+from uvbake.mesh.graph import components
 from uvbake.mesh.topology import nonmanifold_vertices
 
 __all__ = ["repair", "RepairResult"]
@@ -128,8 +129,7 @@ def _weld(V, F, weld_tol):
         rows.append(pairs[:, 0])
         cols.append(pairs[:, 1])
     rows, cols = np.concatenate(rows), np.concatenate(cols)
-    _, cl = connected_components(sp.coo_matrix((np.ones(len(rows)), (rows, cols)),
-                                               shape=(len(bv), len(bv))), directed=False)
+    _, cl = components(len(bv), rows, cols)
     if cl.max() + 1 == len(bv):
         return rep
     cid = np.arange(n) + (cl.max() + 1)
@@ -152,7 +152,7 @@ def _weld(V, F, weld_tol):
     a, b = a[keep], b[keep]
     if len(a) == 0:
         return rep
-    _, grp = connected_components(sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+    _, grp = components(n, a, b)
     welded = np.zeros(n, bool)
     welded[a] = welded[b] = True
     root = np.full(grp.max() + 1, n)
@@ -248,7 +248,7 @@ def _orient_parity(F, n):
     hi, hj = order[same], order[same + 1]
     fi, fj = hi // 3, hj // 3
     need = (he[hi, 0] == he[hj, 0]).astype(np.int8)         # same direction: one of them must flip
-    nc, comp = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(m, m)), directed=False)
+    nc, comp = components(m, fi, fj)
     first = np.full(nc, m)
     np.minimum.at(first, comp, np.arange(m))
     # a virtual root joined to one triangle per piece: one BFS covers every piece
@@ -421,8 +421,7 @@ def _drop_specks(p: RepairResult, min_component_faces: int | None) -> None:
     ks = key[order]
     same = np.flatnonzero(ks[1:] == ks[:-1])
     fi, fj = order[same] // 3, order[same + 1] // 3
-    nc, comp = connected_components(sp.coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(mm, mm)),
-                                    directed=False)
+    nc, comp = components(mm, fi, fj)
     if nc <= 1 or thr <= 1:
         return
     size = np.bincount(comp, minlength=nc)

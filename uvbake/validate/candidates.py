@@ -62,14 +62,12 @@ def _edge_components(vid, twin):
     -------
     chart : (m,) int64, charts numbered 0..k-1
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from uvbake.mesh.graph import components
 
     m = len(vid)
     h = np.flatnonzero(twin >= 0)
     u, v = h // 3, twin[h] // 3
-    g = coo_matrix((np.ones(len(u), np.int8), (u, v)), shape=(m, m))
-    _, labels = connected_components(g, directed=False)
+    _, labels = components(m, u, v)
     return np.unique(labels, return_inverse=True)[1].astype(np.int64).reshape(m)
 
 

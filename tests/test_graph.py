@@ -1,0 +1,38 @@
+"""uvbake.mesh.graph.components: scipy's undirected connected components, same labels."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from uvbake.mesh import graph
+from uvbake.mesh.graph import components
+
+
+def _scipy(n, i, j):
+    return connected_components(sp.coo_matrix((np.ones(len(i)), (i, j)), shape=(n, n)), directed=False)
+
+
+@pytest.mark.parametrize("direct_max", [10**9, 0])      # every graph the direct way, or none
+def test_components_match_scipys_undirected_labels_exactly(monkeypatch, direct_max):
+    monkeypatch.setattr(graph, "DIRECT_MAX_EDGES", direct_max)
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        n = int(rng.integers(1, 200))
+        m = int(rng.integers(0, 3 * n))
+        i, j = rng.integers(0, n, m), rng.integers(0, n, m)
+        if trial % 5 == 0 and m:                    # self-loops and repeated edges
+            j[: m // 3] = i[: m // 3]
+            i, j = np.concatenate([i, i]), np.concatenate([j, j])
+        count, labels = components(n, i, j)
+        ref_count, ref = _scipy(n, i, j)
+        assert count == ref_count and labels.dtype == np.int32
+        assert np.array_equal(labels, ref)
+
+
+def test_components_of_a_graph_without_nodes_or_edges():
+    assert components(0, [], [])[0] == 0
+    count, labels = components(4, [], [])
+    assert count == 4 and labels.tolist() == [0, 1, 2, 3]
+    count, labels = components(5, [4, 1], [3, 4])                        # {0}, {1, 3, 4}, {2}
+    assert count == 3 and labels.tolist() == [0, 1, 2, 1, 1]
