@@ -27,6 +27,7 @@ import numpy as np
 
 from uvbake.mesh.arrays import signed_areas, triangle_areas
 from uvbake.mesh.graph import components
+from uvbake.mesh.topology import _edges, boundary_edges
 
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
@@ -44,9 +45,10 @@ FAN_QUALITY = 0.3
 def holes(F: np.ndarray) -> int:
     """Holes of a disk with holes (boundary loops less one), from its Euler characteristic."""
     F = np.asarray(F, dtype=np.int64)
-    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    n_edges = len(np.unique(e[:, 0] * (int(F.max()) + 1) + e[:, 1])) if len(F) else 0
-    return max(0, 1 - (len(np.unique(F)) - n_edges + len(F)))
+    if not len(F):
+        return 0
+    _, edges, _ = _edges(F, int(F.max()) + 1)
+    return max(0, 1 - (len(np.unique(F)) - len(edges) + len(F)))
 
 
 def hole_fans(V: np.ndarray, F: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -54,9 +56,7 @@ def hole_fans(V: np.ndarray, F: np.ndarray, start: np.ndarray) -> tuple[np.ndarr
     (h,3), their start UVs (h,2), fan triangles (k,3) indexing the chart's vertices then the fan
     vertices), or None when no hole is filled."""
     n = len(V)
-    he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    key, twin = he[:, 0] * n + he[:, 1], he[:, 1] * n + he[:, 0]
-    border = he[~np.isin(key, twin)]                   # half-edges without a twin: the chart on their left
+    border = boundary_edges(F, n)                      # oriented as in their triangle: the chart on their left
     if len(border) == 0:
         return None
     _, loop_of = components(n, border[:, 0], border[:, 1])
