@@ -426,3 +426,28 @@ def test_the_next_merge_is_the_smallest_charts_first_untried_pair_among_its_long
         tried = {_pair(serial[a], serial[b]) for a, b in ij.astype(int) if rng.random() < 0.5}
         assert _next_merge(border, area, serial, tried) == reference(border, area, serial, tried)
     assert _next_merge(np.zeros((0, 3)), [1.0], [0], set()) is None
+
+
+def test_borders_kept_through_merges_equal_the_borders_rebuilt_from_scratch(monkeypatch):
+    # merge_back updates the chart borders after each merge instead of rebuilding them: every update
+    # must give chart_borders' array exactly (the same pairs, the same summed lengths, bit for bit)
+    from trimesh import creation
+
+    from uvbake.atlas import merge
+    from uvbake.atlas.charting import make_charts
+
+    seen = []
+    update = merge._Borders.merged
+
+    def checked(self, keep, drop):
+        b = update(self, keep, drop)
+        ref = merge.chart_borders(self.charts, self.cache)
+        seen.append(b.shape == ref.shape and np.array_equal(b, ref))
+        return b
+
+    monkeypatch.setattr(merge._Borders, "merged", checked)
+    rng = np.random.default_rng(7)
+    sphere = creation.icosphere(3)
+    V = np.asarray(sphere.vertices) * (1 + 0.15 * rng.standard_normal((len(sphere.vertices), 1)))
+    make_charts(V, np.asarray(sphere.faces))
+    assert len(seen) >= 5 and all(seen)

@@ -40,7 +40,8 @@ def merge_back(st: _Charting) -> None:
     least = [float(area_factors(c, uv).min()) for c, uv in zip(st.done, st.starts)]
     tried: set[tuple[int, int]] = set()
     cache: dict = {}                                   # boundary of each chart, computed once
-    order = _merge_order(chart_borders(st.done, cache), area)
+    borders = _Borders(st.done, cache)
+    order = _merge_order(borders.border if borders.exact else chart_borders(st.done, cache), area)
     at = 0
     while True:
         at = _first_untried(order, at, serial, tried)   # the order is walked once between merges
@@ -66,7 +67,7 @@ def merge_back(st: _Charting) -> None:
         st.done[keep], st.starts[keep], area[keep] = merged, uv, area[i] + area[j]
         least[keep], serial[keep] = float(np.exp(logf.min())), len(serial) + len(tried)
         del st.done[drop], st.starts[drop], area[drop], serial[drop], least[drop]
-        order, at = _merge_order(chart_borders(st.done, cache), area), 0
+        order, at = _merge_order(borders.merged(keep, drop), area), 0
 
 
 def _merge_order(border: np.ndarray, area: list) -> tuple[np.ndarray, np.ndarray]:
@@ -153,6 +154,80 @@ def chart_borders(charts: list[Chart], cache: dict | None = None) -> np.ndarray:
     k = len(charts)
     up, inv = np.unique(i * k + j, return_inverse=True)
     return np.column_stack([up // k, up % k, np.bincount(inv, weights=length)])
+
+
+class _Borders:
+    """:func:`chart_borders` of a list of charts kept up to date through merges: the same rows and the
+    same sums (each pair's length added up in the order chart_borders adds it), at a cost per merge
+    that follows the merged charts' neighbourhoods instead of the whole atlas (a noisy sphere of 20,480
+    triangles: 1,500 charts, 363 merges, 2.8 s of its charting rebuilding every border).
+
+    A merge only welds boundary half-edges away, so the boundary half-edges (keyed by their mesh
+    vertices) are a fixed universe; ``owner`` says which chart (list index) holds each one now.
+    Meshes where two charts hold the same boundary half-edge (not manifold) take chart_borders as it is.
+    """
+
+    def __init__(self, charts: list[Chart], cache: dict):
+        self.charts, self.cache = charts, cache
+        h, _ = _boundary_global(charts, cache)
+        self.n = int(h[:, 3:].max()) + 1 if len(h) else 1
+        self.keys = np.unique(h[:, 3] * self.n + h[:, 4])
+        self.exact = len(self.keys) == len(h)               # every half-edge in one chart only
+        if not self.exact:
+            return
+        self.label = np.array([c.label for c in charts])
+        self.rows = [self._rows(c) for c in charts]       # per chart: (key index, twin index or -1, length)
+        self.owner = np.full(len(self.keys), -1, np.int64)
+        for k, (at, _, _) in enumerate(self.rows):        # one iteration per chart, once
+            self.owner[at] = k
+        self.border = np.concatenate([self._out(k) for k in range(len(charts))] + [np.zeros((0, 3))])
+
+    def _rows(self, chart):
+        _boundary_global([chart], self.cache)              # fills the cache
+        _, r, w = self.cache[id(chart)]
+        key, twin = r[:, 2] * self.n + r[:, 3], r[:, 3] * self.n + r[:, 2]
+        if not len(self.keys):
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), w
+        at = np.searchsorted(self.keys, key)
+        tw = np.minimum(np.searchsorted(self.keys, twin), len(self.keys) - 1)
+        return at, np.where(self.keys[tw] == twin, tw, -1), w
+
+    def _out(self, k):
+        """chart_borders' rows (k, j, length) of chart k, j ascending."""
+        _, tw, w = self.rows[k]
+        j = np.where(tw >= 0, self.owner[np.maximum(tw, 0)], -1)
+        ok = (j >= 0) & (j != k)
+        if ok.any():
+            ok[ok] &= self.label[j[ok]] == self.label[k]
+        if not ok.any():
+            return np.zeros((0, 3))
+        up, inv = np.unique(j[ok], return_inverse=True)
+        return np.column_stack([np.full(len(up), k), up, np.bincount(inv, weights=w[ok])])
+
+    def merged(self, keep: int, drop: int) -> np.ndarray:
+        """The borders after ``charts[keep]`` became the merge of itself and ``charts[drop]`` (already
+        deleted from the list, keep < drop)."""
+        if not self.exact:
+            return chart_borders(self.charts, self.cache)
+        old_keep, old_drop = self.rows[keep], self.rows[drop]
+        del self.rows[drop]
+        self.label = np.delete(self.label, drop)
+        self.owner[old_keep[0]] = -1
+        self.owner[old_drop[0]] = -1
+        self.owner[self.owner > drop] -= 1
+        self.rows[keep] = self._rows(self.charts[keep])
+        self.label[keep] = self.charts[keep].label
+        self.owner[self.rows[keep][0]] = keep
+        b = self.border
+        touched = (b[:, 0] == keep) | (b[:, 0] == drop) | (b[:, 1] == keep) | (b[:, 1] == drop)
+        redo = np.unique(np.concatenate([b[touched, 0], b[touched, 1]])).astype(np.int64)
+        redo = np.unique(np.where(redo == drop, keep, redo - (redo > drop)))
+        b = b[~touched]
+        b[:, :2] -= b[:, :2] > drop
+        b = b[~np.isin(b[:, 0], redo)]
+        b = np.concatenate([b] + [self._out(int(k)) for k in redo])
+        self.border = b[np.lexsort((b[:, 1], b[:, 0]))]
+        return self.border
 
 
 def join_charts(a: Chart, b: Chart, cache: dict | None = None) -> Chart | None:
