@@ -36,3 +36,18 @@ def test_components_of_a_graph_without_nodes_or_edges():
     assert count == 4 and labels.tolist() == [0, 1, 2, 3]
     count, labels = components(5, [4, 1], [3, 4])                        # {0}, {1, 3, 4}, {2}
     assert count == 3 and labels.tolist() == [0, 1, 2, 1, 1]
+
+
+def test_components_hand_graphs_that_need_more_rounds_to_scipy_with_the_same_labels(monkeypatch):
+    # one round of propagation settles a star but not a path numbered out of order: that graph
+    # falls back to scipy, and the labels are the same either way
+    rng = np.random.default_rng(11)
+    order = rng.permutation(60)
+    i, j = order[:-1], order[1:]                                          # one path through all 60 nodes
+    assert graph._propagate(60, i, j) is not None                         # settles within MAX_ROUNDS
+    monkeypatch.setattr(graph, "MAX_ROUNDS", 1)
+    assert graph._propagate(60, i, j) is None
+    count, labels = components(60, i, j)
+    assert count == 1 and np.array_equal(labels, _scipy(60, i, j)[1])
+    count, labels = components(7, [0, 0, 0], [3, 5, 6])                    # a star and three lone nodes
+    assert count == 4 and labels.tolist() == [0, 1, 2, 0, 3, 0, 0]
