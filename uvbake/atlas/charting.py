@@ -152,6 +152,11 @@ def sub_charts(chart: Chart, sub_labels: ArrayLike) -> list[Chart]:
     return parts
 
 
+#: The half-edge (0: 0->1, 1: 1->2, 2: 2->0) each entry of a triangle's row-major 3x3 block lies on;
+#: 3 (never a boundary edge) for the diagonal.
+_BLOCK_EDGE = np.array([3, 0, 2, 0, 3, 1, 2, 1, 3])
+
+
 def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Least squares conformal map (Levy et al. 2002), assembled and solved in one shot.
 
@@ -162,7 +167,7 @@ def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | 
     quarters of the time. ``frames``: (Q, area) of :func:`uvbake.flatten.energy.triangle_frames`,
     when the caller has them. Returns uv (n,2)."""
     from uvbake.flatten.starts import farthest_boundary_pair
-    from uvbake.mesh.topology import boundary_edges
+    from uvbake.mesh.topology import _edges
 
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
@@ -178,12 +183,16 @@ def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | 
     # Huv is the Hessian of -4 x the signed UV area, a sum over boundary edges: its entries on interior
     # edges cancel between the edge's two triangles (camelhead: |Huv| 1 on the boundary, at most 7e-13
     # inside). Kept as stored zeros they double the u-v block's pattern and the factorisation's fill.
-    bnd = boundary_edges(F, n)
-    on = np.isin(np.minimum(r, c) * n + np.maximum(r, c), np.sort(bnd, axis=1) @ np.array([n, 1]))
+    # entry (k, l) of a triangle's 3x3 block lies on its edge k-l; the diagonal on no edge (unless a
+    # triangle repeats a vertex: then the plain test below)
+    he, _, bnd, alone = _edges(F, n, mask=True)
+    on = np.column_stack([alone.reshape(-1, 3), np.zeros(len(F), bool)])[:, _BLOCK_EDGE].reshape(-1)
+    if (he[:, 0] == he[:, 1]).any():                     # a degenerate triangle: the plain test
+        on = np.isin(np.minimum(r, c) * n + np.maximum(r, c), np.sort(bnd, axis=1) @ np.array([n, 1]))
     rows = np.concatenate([r, r + n, r[on], c[on] + n])
     cols = np.concatenate([c, c + n, c[on] + n, r[on]])
     data = np.concatenate([duu, duu, duv[on], duv[on]])
-    p, q = farthest_boundary_pair(V, F)
+    p, q = farthest_boundary_pair(V, F, boundary=bnd)
     x = np.zeros(2 * n)
     x[q] = np.linalg.norm(V[q] - V[p])
     # unknown k -> its index among the free ones (-1: pinned); the pinned ones move to the right side

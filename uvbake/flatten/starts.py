@@ -23,9 +23,10 @@ from uvbake.mesh.topology import boundary_edges, topology
 ISOMAP_LANDMARKS = 64
 
 
-def farthest_boundary_pair(V: np.ndarray, F: np.ndarray) -> tuple[int, int]:
-    """Two boundary vertices far apart: the farthest from an arbitrary one, then the farthest from it."""
-    bnd = np.unique(boundary_edges(F, len(V)))
+def farthest_boundary_pair(V: np.ndarray, F: np.ndarray, *, boundary: np.ndarray | None = None) -> tuple[int, int]:
+    """Two boundary vertices far apart: the farthest from an arbitrary one, then the farthest from it.
+    ``boundary``: the (b,2) boundary half-edges, when the caller has them."""
+    bnd = np.unique(boundary_edges(F, len(V)) if boundary is None else boundary)
     p = bnd[np.argmax(np.linalg.norm(V[bnd] - V[bnd[0]], axis=1))]
     q = bnd[np.argmax(np.linalg.norm(V[bnd] - V[p], axis=1))]
     return int(p), int(q)

@@ -21,9 +21,10 @@ class Topology:
     boundary_edges: np.ndarray        # (b,2) int, oriented as in their triangle
 
 
-def _edges(F, n):
+def _edges(F, n, mask=False):
     """Half-edges (3m,2), the sorted distinct edge keys, and the boundary half-edges (edges of one
-    triangle only) in half-edge order: one sort, no inverse permutation (np.unique's cost 6x)."""
+    triangle only) in half-edge order: one sort, no inverse permutation (np.unique's cost 6x).
+    With ``mask``, also the (3m,) bool mask of the boundary half-edges."""
     he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     key = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])
     s = np.sort(key)
@@ -34,9 +35,10 @@ def _edges(F, n):
     uniq = s[np.concatenate([[True], ~same])] if len(s) else s
     once = s[alone]
     if not len(once):
-        return he, uniq, he[:0]
+        return (he, uniq, he[:0]) + ((np.zeros(len(he), bool),) if mask else ())
     at = np.minimum(np.searchsorted(once, key), len(once) - 1)
-    return he, uniq, he[once[at] == key]
+    alone_he = once[at] == key
+    return (he, uniq, he[alone_he]) + ((alone_he,) if mask else ())
 
 
 def boundary_edges(F: ArrayLike, n_vertices: int | None = None) -> np.ndarray:
