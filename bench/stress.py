@@ -1,0 +1,126 @@
+"""uvbake against xatlas where the research meshes say little: rough surfaces, size, triangle soup.
+
+    PYTHONPATH=. python3 bench/stress.py [--only NAME ...] [--alphas 0.5]
+
+Built with trimesh and numpy (nothing read from disk, the same inputs on every machine):
+- ``noise_X``: a 20,480-triangle sphere whose vertices are moved radially by X (0.5 % to 5 %) of its
+  radius times a standard normal: scan noise from mild (under an edge length) to rough (above it);
+- ``noise5_small``: 5 % on a 5,120-triangle sphere;
+- ``heightfield``: a gently waving 300 x 300 vertex grid (178,802 triangles, one chart);
+- ``cow_x16``: the research cow subdivided twice (88,320 triangles; skipped without ../shared/meshes);
+- ``soup``: 600 separate random triangles (600 charts);
+- ``mobius``: a Moebius strip (not orientable).
+For each: in-process ``uvbake.unwrap((V, F), alpha=a)`` without a bake and ``xatlas.parametrize``,
+process CPU seconds, charts, validity and least texel share, and uvbake's stage times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _noisy_sphere(subdivisions, sigma):
+    from trimesh import creation
+
+    rng = np.random.default_rng(7)
+    s = creation.icosphere(subdivisions=subdivisions)
+    V = np.asarray(s.vertices) * (1 + sigma * rng.standard_normal((len(s.vertices), 1)))
+    return V, np.asarray(s.faces)
+
+
+def _heightfield(k=300):
+    from shapes import _grid
+
+    x, y = np.meshgrid(np.linspace(0, 1, k), np.linspace(0, 1, k), indexing="ij")
+    z = 0.05 * np.sin(6 * x) * np.cos(5 * y)
+    return np.stack([x, y, z], -1).reshape(-1, 3), _grid(k, k, False)
+
+
+def _soup(n=600):
+    rng = np.random.default_rng(5)
+    centre = rng.uniform(0, 10, (n, 1, 3))
+    return (centre + rng.normal(0, 0.2, (n, 3, 3))).reshape(-1, 3), np.arange(3 * n).reshape(-1, 3)
+
+
+def _mobius(n=120, w=8):
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, n, endpoint=False), np.linspace(-0.3, 0.3, w), indexing="ij")
+    V = np.stack([(1 + v * np.cos(u / 2)) * np.cos(u), (1 + v * np.cos(u / 2)) * np.sin(u), v * np.sin(u / 2)],
+                 -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(w - 1), indexing="ij")
+    a = (i * w + j).ravel()
+    last = i.ravel() == n - 1                 # the last column joins the first one flipped over
+    b = np.where(last, w - 1 - j.ravel(), a + w)
+    bb = np.where(last, w - 2 - j.ravel(), a + w + 1)
+    return V, np.concatenate([np.stack([a, b, a + 1], 1), np.stack([a + 1, b, bb], 1)])
+
+
+def _cow_x16():
+    import trimesh
+
+    import uvbake
+
+    path = ROOT.parent / "shared" / "meshes" / "cow.off"
+    if not path.exists():
+        return None
+    m = uvbake.load_mesh(str(path))
+    t = trimesh.Trimesh(m.V, m.F, process=False).subdivide().subdivide()
+    return np.asarray(t.vertices), np.asarray(t.faces)
+
+
+def inputs():
+    out = {f"noise_{s:g}%": (lambda s=s: _noisy_sphere(5, s / 100)) for s in (0.5, 1, 2, 5)}
+    out.update(noise5_small=lambda: _noisy_sphere(4, 0.05), heightfield=_heightfield, cow_x16=_cow_x16,
+               soup=_soup, mobius=_mobius)
+    return out
+
+
+def main(argv=None):
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))          # bench/shapes.py's grid
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--only", nargs="+")
+    ap.add_argument("--alphas", type=float, nargs="+", default=[0.5])
+    args = ap.parse_args(argv)
+    import xatlas
+
+    import uvbake
+    from uvbake.validate import validate
+
+    uvbake.unwrap(_mobius())                  # imports and caches warmed up once
+    print("| input | triangles | alpha | uvbake CPU s | xatlas CPU s | ratio | charts (xatlas) | valid | "
+          "least texel share | uvbake stages (s) |")
+    print("|---|---:|---|---:|---:|---:|---|---|---:|---|")
+    for name, make in inputs().items():
+        if args.only and name not in args.only:
+            continue
+        mesh = make()
+        if mesh is None:
+            print(f"# {name}: skipped (../shared/meshes is not there)")
+            continue
+        V, F = np.asarray(mesh[0], np.float64), np.asarray(mesh[1], np.int64)
+        t = time.process_time()
+        atlas = xatlas.Atlas()
+        atlas.add_mesh(V.astype(np.float32), F.astype(np.uint32))
+        atlas.generate()
+        x_cpu = time.process_time() - t
+        for a in args.alphas:
+            t = time.process_time()
+            r = uvbake.unwrap((V, F), alpha=a)
+            cpu = time.process_time() - t
+            ok = validate(r.corner_uv, F, chart_ids=r.chart_ids, resolution_px=1024).valid
+            stages = ", ".join(f"{k[:-2]} {v:.2f}" for k, v in r.report["timings"].items()
+                               if k not in ("total_s", "bake_s"))
+            print(f"| {name} | {len(F)} | {a:g} | {cpu:.2f} | {x_cpu:.2f} | {cpu / x_cpu:.1f} | "
+                  f"{r.report['charts_final']} ({atlas.chart_count}) | {ok} | {r.report['min_texel_share']:.3f} | "
+                  f"{stages} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
