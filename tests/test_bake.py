@@ -393,3 +393,25 @@ def test_zero_area_triangles_bake_their_margin_only():
     # the value is the attribute at the closest point: linear along the segment, 7 at the point
     assert np.allclose(out[near_seg], t[near_seg], atol=1e-12)
     assert np.all(out[near_pt] == 7.0)
+
+
+def test_a_rectangular_texture_keeps_texels_square_and_interpolates_by_texel_centre():
+    # a 2:1 plane filling a 256 x 128 texture: u runs over 256 texels, v over 128, so the checker's
+    # squares (1/32 of the width: 8 texels) must be 8 texels both ways, and a ramp baked into the same
+    # texture must hold its value at every texel centre (u = (j + 0.5) / W, v = 1 - (i + 0.5) / H)
+    V, F = plane_grid(8, 4, w=2.0, h=1.0)
+    uv = np.column_stack([V[:, 0] / 2.0, V[:, 1]])[F]
+    W, H = 256, 128
+    img = bake_checker(V, F, uv, texture_size_px=(W, H))
+    assert img.shape == (H, W, 3)
+    dark = img[..., 0] == 40
+    runs_across = np.diff(np.flatnonzero(np.diff(dark[H // 2].astype(int))))
+    runs_down = np.diff(np.flatnonzero(np.diff(dark[:, W // 2].astype(int))))
+    assert set(runs_across.tolist()) == {8} and set(runs_down.tolist()) == {8}
+    colors = np.column_stack([V[:, 0] / 2.0, V[:, 1], np.zeros(len(V))])        # (u, v, 0) at each vertex
+    ramp = bake_vertex_colors(V, F, uv, colors, texture_size_px=(W, H)).astype(float) / 255.0
+    j, i = np.meshgrid(np.arange(W), np.arange(H))
+    assert np.abs(ramp[..., 0] - (j + 0.5) / W).max() <= 0.5 / 255 + 1e-6
+    assert np.abs(ramp[..., 1] - (1.0 - (i + 0.5) / H)).max() <= 0.5 / 255 + 1e-6
+    with pytest.raises(InputError, match="width, height"):
+        bake_checker(V, F, uv, texture_size_px=(256, 0))

@@ -67,7 +67,10 @@ def test_option_keys_are_canonical():
     assert normalise_options(alpha=1 / 2, tol=1e-8, max_iter=1000.0) == base
     assert options_hash(normalise_options(alpha=0.5)) == options_hash(base)
     changed = [dict(alpha=0.3), dict(texture_size_px=512), dict(bake=None), dict(guarantee=False), dict(format="glb"),
-               dict(preview_size_px=0), dict(seed=1)]
+               dict(preview_size_px=0), dict(seed=1), dict(texture_size_px=(1024, 512))]
+    # a square given as (N, N) is the square N; a rectangle is [width, height] (JSON-ready)
+    assert normalise_options(texture_size_px=(1024, 1024)) == base
+    assert normalise_options(texture_size_px=(1024, 512))["unwrap"]["texture_size_px"] == [1024, 512]
     hashes = {options_hash(normalise_options(**o)) for o in changed}
     assert len(hashes) == len(changed) and options_hash(base) not in hashes
     for bad, words in [(dict(alpha=2), "alpha=2"), (dict(texture_size_px=8), "texture_size_px=8"),

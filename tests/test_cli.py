@@ -56,6 +56,19 @@ def test_unwrap_scene_writes_textured_mesh_and_report(scene, tmp_path, capsys):
     assert "8 chart(s)" in capsys.readouterr().out
 
 
+def test_a_rectangular_texture_is_baked_and_reported_at_its_width_and_height(scene, tmp_path, capsys):
+    rep, tex = tmp_path / "report.json", tmp_path / "checker.png"
+    assert main([str(scene), "-o", str(tmp_path / "out.glb"), "--json", str(rep), "--bake", str(tex),
+                 "--texture-size", "256x128"]) == 0
+    report = json.loads(rep.read_text())
+    assert report["valid"] and (report["atlas"]["width_px"], report["atlas"]["height_px"]) == (256, 128)
+    from PIL import Image
+
+    with Image.open(tex) as im:
+        assert im.size == (256, 128)
+    assert "of 256x128 px" in capsys.readouterr().out
+
+
 def test_default_output_sits_beside_the_input(scene):
     assert main([str(scene), "-q"]) == 0
     assert (scene.parent / "scene_uv.obj").exists()
@@ -66,6 +79,9 @@ def test_default_output_sits_beside_the_input(scene):
     (["{scene}", "--alpha", "1.5"], "alpha"),
     (["{scene}", "--max-iter", "-3"], "--max-iter"),
     (["{scene}", "--texture-size", "0"], "--texture-size"),
+    (["{scene}", "--texture-size", "512x8"], "--texture-size: 8 must be within [16, 16384]"),
+    (["{scene}", "--texture-size", "2048x1024x2"], "is not PX or WIDTHxHEIGHT"),
+    (["{scene}", "--texture-size", "64x32", "--gutter", "5"], "an eighth of --texture-size 64x32's shorter side"),
     (["{scene}", "--gutter", "-2"], "--gutter"),
     (["{scene}", "--mip-levels", "2", "--gutter", "4"], "--gutter 4 is less than the 10 texels --mip-levels 2"),
     (["{scene}", "--mip-levels", "0"], "--mip-levels 0"),

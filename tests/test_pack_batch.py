@@ -59,3 +59,5 @@ def test_batch_cli_passes_texel_density():
     args = parser().parse_args(["in", "-o", "out", "--texel-density", "256", "--texture-size", "2048"])
     assert _texture_options(args) == {"texel_density": 256.0, "texture_size_px": 2048}
     assert _texture_options(parser().parse_args(["in", "-o", "out"])) == {}
+    assert _texture_options(parser().parse_args(["in", "-o", "out", "--texture-size", "2048x1024"])) == {
+        "texture_size_px": (2048, 1024)}

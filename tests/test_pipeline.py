@@ -96,6 +96,7 @@ def test_report_shows_the_price_of_the_guarantee():
 @pytest.mark.parametrize("kwargs, match", [
     (dict(texture_size_px=8), "texture_size_px"), (dict(texture_size_px=100.5), "texture_size_px"),
     (dict(gutter_px=-1), "gutter_px"), (dict(bake="plasma"), "bake"), (dict(alpha=2), "alpha"),
+    (dict(texture_size_px=(512, 8)), "texture_size_px"), (dict(texture_size_px=(64, 32), gutter_px=5), "gutter_px"),
 ])
 def test_bad_options(kwargs, match):
     V, F = bumpy_disk(6)
@@ -172,3 +173,31 @@ def test_coordinates_at_any_finite_scale_unwrap(scale):
     e_ref = sum(c["energy"] for c in ref.report["charts"])
     e = sum(c["energy"] for c in r.report["charts"])
     assert abs(e - e_ref) <= 1e-9 + 1e-6 * e_ref
+
+
+def test_a_rectangular_atlas_keeps_each_charts_map_up_to_a_similarity_in_texels():
+    # (width, height) = (512, 256): UVs in [0,1]^2 span 512 texels across and 256 down, so every chart
+    # must be scaled by the same texels per unit both ways: in texel coordinates each triangle keeps
+    # the angles of its chart's solved map, and the baked texture is 512 wide and 256 high
+    from uvbake.mesh.arrays import signed_areas
+
+    V, F = bumpy_disk(10)
+    res = unwrap((V, F), alpha=0.5, texture_size_px=(512, 256), bake="checker")
+    assert_valid_atlas(res)
+    assert res.image.shape == (256, 512, 3)
+    atlas = res.report["atlas"]
+    assert (atlas["width_px"], atlas["height_px"]) == (512, 256) and res.report["options"]["texture_size_px"] == [512, 256]
+
+    def angles(P):                                            # (m,3) corner angles of triangles P (m,3,2)
+        e = np.roll(P, -1, axis=1) - P
+        f = np.roll(P, 1, axis=1) - P
+        cos = (e * f).sum(-1) / (np.linalg.norm(e, axis=-1) * np.linalg.norm(f, axis=-1))
+        return np.arccos(np.clip(cos, -1, 1))
+
+    texels = res.corner_uv * np.array([512.0, 256.0])
+    for c, r in zip(res.charts, res.results):
+        own = np.asarray(r.uv)[c.F]
+        assert np.allclose(angles(texels[c.face_index]), angles(own), rtol=0, atol=1e-6)
+        # and the same orientation (no mirror): signed areas agree in sign
+        assert np.all(np.sign(signed_areas(texels[c.face_index].reshape(-1, 2), np.arange(3 * len(c.F)).reshape(-1, 3)))
+                      == np.sign(signed_areas(np.asarray(r.uv), c.F)))

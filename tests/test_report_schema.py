@@ -76,3 +76,12 @@ def test_every_option_has_help():
                for name, p in sub.choices.items() for a in p._actions
                if not isinstance(a, argparse._HelpAction) and not (a.help or "").strip()]
     assert missing == []
+
+
+def test_report_of_a_rectangular_atlas_validates(schema):
+    from uvbake.atlas.pipeline import unwrap
+
+    report = json.loads(json.dumps(unwrap(SAMPLE_SCENES / "disk_holes.ply", texture_size_px=(256, 128)).report))
+    jsonschema.validate(report, schema)
+    assert report["options"]["texture_size_px"] == [256, 128]
+    assert (report["atlas"]["texture_size_px"], report["atlas"]["width_px"], report["atlas"]["height_px"]) == (256, 256, 128)

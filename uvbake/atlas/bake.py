@@ -73,7 +73,7 @@ DEFAULT_SQUARES_ACROSS = 32
 # public API
 
 
-def bake_checker(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, *, texture_size_px: int = 1024,
+def bake_checker(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, *, texture_size_px: int | tuple[int, int] = 1024,
                  square_size: float | None = None, texel_size_world: float | str | None = None,
                  colors: ArrayLike = ((235, 235, 235), (40, 40, 40)), dilate_px: int | None = None,
                  background: Sequence[int] = (0, 0, 0)) -> np.ndarray:
@@ -89,8 +89,8 @@ def bake_checker(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, *, texture_si
     F : (m,3) int array
     corner_uv : (m,3,2) float array
         Atlas UVs per corner in [0,1]^2, v up.
-    texture_size_px : int
-        Width and height of the (square) texture.
+    texture_size_px : int or (int, int)
+        Side of a square texture, or its (width, height).
     square_size : float, optional
         Edge of a checker square: in atlas UV units, or in world units when ``texel_size_world`` is
         given. Default: ``texture_size_px / 32`` texels (32 squares across the texture).
@@ -116,22 +116,25 @@ def bake_checker(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, *, texture_si
     if colors.shape != (2, 3) or not np.all(np.isfinite(colors)):
         raise InputError(f"colors must be two RGB triples, got shape {colors.shape}; "
                          "pass ((r,g,b), (r,g,b)) in 0..255")
+    W, H = size
     sq = _square_size_uv(V, F, corner_uv, size, square_size, texel_size_world)
 
     # each covered texel's own UV: its centre inside a triangle, its closest point in the margin
     face, (band, tri, k, s) = rasterize(corner_uv, size)
     inside = np.flatnonzero(face.ravel() >= 0)
-    row, col = np.divmod(inside, size)
+    row, col = np.divmod(inside, W)
     edge = _on_edges(corner_uv, tri, k, s)
-    u = np.concatenate([(col + 0.5) / size, edge[:, 0]])
-    v = np.concatenate([1.0 - (row + 0.5) / size, edge[:, 1]])
+    u = np.concatenate([(col + 0.5) / W, edge[:, 0]])
+    v = np.concatenate([1.0 - (row + 0.5) / H, edge[:, 1]])
     texel = np.concatenate([inside, band])
-    parity = (np.floor(u / sq).astype(np.int64) + np.floor(v / sq).astype(np.int64)) & 1
+    # squares of sq * W texels both ways (v runs H / W times faster than u in texels)
+    v_sq = sq if W == H else sq * W / H
+    parity = (np.floor(u / sq).astype(np.int64) + np.floor(v / v_sq).astype(np.int64)) & 1
     return _finish(texel, np.clip(np.rint(colors), 0, 255).astype(np.uint8)[parity], size, dilate_px, background)
 
 
 def bake_vertex_colors(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, vertex_colors: ArrayLike, *,
-                       texture_size_px: int = 1024, dilate_px: int | None = None,
+                       texture_size_px: int | tuple[int, int] = 1024, dilate_px: int | None = None,
                        background: Sequence[int] = (0, 0, 0)) -> np.ndarray:
     """Bake per-vertex colours into the atlas (barycentric interpolation inside each triangle).
 
@@ -197,8 +200,8 @@ def dilate(image: np.ndarray, mask: np.ndarray, *, iterations: int | None) -> np
 # internals
 
 
-def _check_inputs(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, texture_size_px: int
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+def _check_inputs(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, texture_size_px: int | tuple[int, int]
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int, int]]:
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F)
     corner_uv = np.asarray(corner_uv, dtype=np.float64)
@@ -217,10 +220,18 @@ def _check_inputs(V: ArrayLike, F: ArrayLike, corner_uv: ArrayLike, texture_size
     if corner_uv.min() < -1e-6 or corner_uv.max() > 1 + 1e-6:
         raise InputError(f"corner_uv spans [{corner_uv.min():.4g}, {corner_uv.max():.4g}], outside "
                          "[0,1]; pack the charts into the atlas first")
-    if isinstance(texture_size_px, bool) or not isinstance(texture_size_px, (int, np.integer)) \
-            or not 1 <= texture_size_px <= 16384:
-        raise InputError(f"texture_size_px must be an integer in 1..16384, got {texture_size_px!r}")
-    return V, F, corner_uv, int(texture_size_px)
+    return V, F, corner_uv, texture_dims(texture_size_px)
+
+
+def texture_dims(texture_size_px: int | tuple[int, int]) -> tuple[int, int]:
+    """(width, height) of a texture given as one side (square) or as (width, height), each 1..16384."""
+    pair = texture_size_px if isinstance(texture_size_px, (tuple, list)) and len(texture_size_px) == 2 \
+        else (texture_size_px, texture_size_px)
+    for n in pair:
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 16384:
+            raise InputError(f"texture_size_px must be an integer in 1..16384 or a (width, height) pair of them, "
+                             f"got {texture_size_px!r}")
+    return int(pair[0]), int(pair[1])
 
 
 def _square_size_uv(V, F, corner_uv, size, square_size, texel_size_world):
@@ -235,7 +246,7 @@ def _square_size_uv(V, F, corner_uv, size, square_size, texel_size_world):
             texel_size_world = _texel_size_world(V, F, corner_uv, size)
         if not (np.isfinite(texel_size_world) and texel_size_world > 0):
             raise InputError(f"texel_size_world must be positive and finite, got {texel_size_world!r}")
-        world_per_uv = texel_size_world * size
+        world_per_uv = texel_size_world * size[0]
         sq_world = _nice(world_per_uv / DEFAULT_SQUARES_ACROSS) if square_size is None else square_size
         sq = sq_world / world_per_uv
     try:
@@ -263,11 +274,11 @@ def _texel_size_world(V, F, corner_uv, size):
     if not (area2 > 0 and area3 > 0):
         raise InputError("cannot estimate texel_size_world: the mesh or its UVs have zero area; "
                          "pass texel_size_world as a number")
-    return math.sqrt(area3 / area2) / size
+    return math.sqrt(area3 / (area2 * size[0] * size[1]))
 
 
-def bake_corner_attribute(corner_uv: np.ndarray, values: np.ndarray, size: int) -> np.ndarray:
-    """Bake a per-corner attribute: ``(size, size, k)`` float64, NaN where uncovered.
+def bake_corner_attribute(corner_uv: np.ndarray, values: np.ndarray, size: int | tuple[int, int]) -> np.ndarray:
+    """Bake a per-corner attribute: ``(H, W, k)`` float64, NaN where uncovered.
 
     Parameters
     ----------
@@ -276,15 +287,16 @@ def bake_corner_attribute(corner_uv: np.ndarray, values: np.ndarray, size: int) 
     values : (m,3,k) or (m,3) float array
         The attribute at each corner; interpolated barycentrically inside each triangle and clamped
         to the closest point of the closest triangle up to ``BAKE_MARGIN_PX`` texels outside.
-    size : int
+    size : int or (W, H)
         Texture width and height.
     """
     values = np.asarray(values, dtype=np.float64)
     squeeze = values.ndim == 2
-    texel, vals = _sample(corner_uv, values.reshape(len(values), 3, -1), size)
-    out = np.full((size * size, vals.shape[1]), np.nan)
+    W, H = texture_dims(size)
+    texel, vals = _sample(corner_uv, values.reshape(len(values), 3, -1), (W, H))
+    out = np.full((W * H, vals.shape[1]), np.nan)
     out[texel] = vals
-    out = out.reshape(size, size, -1)
+    out = out.reshape(H, W, -1)
     return out[..., 0] if squeeze else out
 
 
@@ -295,8 +307,9 @@ def _sample(corner_uv, values, size):
     inside = np.flatnonzero(face.ravel() >= 0)
     f = face.ravel()[inside]
     gx, gy, h = _planes(corner_uv, values, size)
-    x = (inside % size + 0.5)[:, None]
-    y = (inside // size + 0.5)[:, None]
+    W = texture_dims(size)[0]
+    x = (inside % W + 0.5)[:, None]
+    y = (inside // W + 0.5)[:, None]
     edge = _on_edges(values, tri, k, s)
     return np.concatenate([inside, band]), np.concatenate([gx[f] * x + gy[f] * y + h[f], edge])
 
@@ -307,10 +320,11 @@ def _on_edges(values, tri, k, s):
 
 
 def _texel_corners(corner_uv, size):
-    """Corners in texel coordinates: x = u * size (columns), y = (1 - v) * size (rows)."""
+    """Corners in texel coordinates: x = u * W (columns), y = (1 - v) * H (rows)."""
+    W, H = texture_dims(size)
     P = np.empty(corner_uv.shape)
-    P[..., 0] = corner_uv[..., 0] * size
-    P[..., 1] = (1.0 - corner_uv[..., 1]) * size
+    P[..., 0] = corner_uv[..., 0] * W
+    P[..., 1] = (1.0 - corner_uv[..., 1]) * H
     return P
 
 
@@ -335,26 +349,26 @@ def _planes(corner_uv, values, size):
             np.einsum("mc,mck->mk", C, values))
 
 
-def rasterize(corner_uv: np.ndarray, size: int, *, margin_px: float = BAKE_MARGIN_PX
+def rasterize(corner_uv: np.ndarray, size: int | tuple[int, int], *, margin_px: float = BAKE_MARGIN_PX
               ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """Which triangle covers every texel centre, and where texels within ``margin_px`` outside clamp to.
 
     Parameters
     ----------
     corner_uv : (m,3,2) float array
-        Atlas UVs, v up; texel ``(i, j)`` has its centre at ``u = (j + 0.5) / size``,
-        ``v = 1 - (i + 0.5) / size``.
-    size : int
-        Texture width and height.
+        Atlas UVs, v up; texel ``(i, j)`` has its centre at ``u = (j + 0.5) / W``,
+        ``v = 1 - (i + 0.5) / H``.
+    size : int or (W, H)
+        Texture width and height (one number: square).
     margin_px : float
         Texels whose centre is at most this far (Euclidean, in texels) from a triangle are covered.
 
     Returns
     -------
-    face : (size, size) int32 (int64 past 2^31 triangles)
+    face : (H, W) int32 (int64 past 2^31 triangles)
         The triangle whose inside holds the texel centre, -1 elsewhere.
     band : tuple (texel, tri, k, s) of (b,) arrays
-        The other covered texels (flat index ``i * size + j``): their closest point on the triangles
+        The other covered texels (flat index ``i * W + j``): their closest point on the triangles
         is at ``(1 - s) * corner k + s * corner (k + 1) % 3`` of triangle ``tri``.
 
     Inside: every triangle is scanned row by row (the span of texel centres between its edges, closed
@@ -367,9 +381,10 @@ def rasterize(corner_uv: np.ndarray, size: int, *, margin_px: float = BAKE_MARGI
     importing Open3D alone costs about a second of CPU (docs/decisions/bake.md).
     """
     corner_uv = np.asarray(corner_uv, dtype=np.float64)
+    size = texture_dims(size)
     P = _texel_corners(corner_uv, size)
     A, B, C, det = _barycentric_planes(P)
-    face = np.full((size, size), -1, dtype=np.int32 if len(corner_uv) < 2**31 else np.int64)
+    face = np.full((size[1], size[0]), -1, dtype=np.int32 if len(corner_uv) < 2**31 else np.int64)
     _scan_inside(P, A, B, C, det, size, face)
     return face, _scan_outline(corner_uv, P, np.sign(det), size, margin_px, face)
 
@@ -383,10 +398,11 @@ MIN_DOUBLE_AREA_PX2 = 1e-9
 
 def _scan_inside(P, A, B, C, det, size, face):
     """Write the triangle of every texel centre inside one (row spans, vectorised over all rows)."""
+    W, H = size
     live = np.flatnonzero(np.abs(det) > MIN_DOUBLE_AREA_PX2)   # thinner ones: outline only
     Q = P[live]
-    r0 = np.clip(np.ceil(Q[..., 1].min(axis=1) - 0.5), 0, size).astype(np.int64)
-    r1 = np.clip(np.floor(Q[..., 1].max(axis=1) - 0.5), -1, size - 1).astype(np.int64)
+    r0 = np.clip(np.ceil(Q[..., 1].min(axis=1) - 0.5), 0, H).astype(np.int64)
+    r1 = np.clip(np.floor(Q[..., 1].max(axis=1) - 0.5), -1, H - 1).astype(np.int64)
     nrows = np.maximum(r1 - r0 + 1, 0)
     t = np.repeat(np.arange(len(live)), nrows)              # one entry per (triangle, row)
     row = r0[t] + np.arange(len(t)) - np.repeat(np.cumsum(nrows) - nrows, nrows)
@@ -400,10 +416,10 @@ def _scan_inside(P, A, B, C, det, size, face):
     empty = np.any((At == 0) & (rest < 0), axis=1)
     lo_x = np.maximum(lo_x, Q[t, :, 0].min(axis=1))
     hi_x = np.minimum(hi_x, Q[t, :, 0].max(axis=1))
-    c0 = np.clip(np.ceil(lo_x - 0.5 - SPAN_EPS_PX), 0, size).astype(np.int64)
-    c1 = np.clip(np.floor(hi_x - 0.5 + SPAN_EPS_PX), -1, size - 1).astype(np.int64)
+    c0 = np.clip(np.ceil(lo_x - 0.5 - SPAN_EPS_PX), 0, W).astype(np.int64)
+    c1 = np.clip(np.floor(hi_x - 0.5 + SPAN_EPS_PX), -1, W - 1).astype(np.int64)
     ncols = np.where(empty, 0, np.maximum(c1 - c0 + 1, 0))
-    start = row * size + c0                                 # flat index of each span's first texel
+    start = row * W + c0                                    # flat index of each span's first texel
     seg = np.repeat(np.arange(len(t)), ncols)
     flat = start[seg] + np.arange(len(seg)) - np.repeat(np.cumsum(ncols) - ncols, ncols)
     face.ravel()[flat] = tl[seg]
@@ -427,8 +443,9 @@ def _scan_outline(corner_uv, P, sign, size, margin_px, face):
     interior = (right - left == 1) & (sign[tri] != 0) & (sign[twin] == sign[tri])
     tri, k = tri[~interior], k[~interior]
     A, B = P[tri, k], P[tri, (k + 1) % 3]
-    lo = np.clip(np.ceil(np.minimum(A, B) - margin_px - 0.5), 0, size).astype(np.int64)
-    hi = np.clip(np.floor(np.maximum(A, B) + margin_px - 0.5), -1, size - 1).astype(np.int64)
+    dims = np.array(size)                                   # (W, H): x clipped to W, y to H
+    lo = np.clip(np.ceil(np.minimum(A, B) - margin_px - 0.5), 0, dims).astype(np.int64)
+    hi = np.clip(np.floor(np.maximum(A, B) + margin_px - 0.5), -1, dims - 1).astype(np.int64)
     ncol = np.maximum(hi[:, 0] - lo[:, 0] + 1, 0)
     n = ncol * np.maximum(hi[:, 1] - lo[:, 1] + 1, 0)
     e = np.repeat(np.arange(len(tri)), n)                   # one entry per (edge, texel of its box)
@@ -444,7 +461,7 @@ def _scan_outline(corner_uv, P, sign, size, margin_px, face):
     s = np.clip(np.einsum("ij,ij->i", p - A[e], AB) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
     d = np.hypot(*(A[e] + s[:, None] * AB - p).T)
     near = d <= margin_px
-    e, s, d, key = e[near], s[near], d[near], row[near] * size + col[near]
+    e, s, d, key = e[near], s[near], d[near], row[near] * size[0] + col[near]
     pick = np.lexsort((e, d, key))                          # per texel: nearest, then first edge
     first = np.ones(len(pick), bool)
     first[1:] = key[pick][1:] != key[pick][:-1]
@@ -461,10 +478,11 @@ def _finish(texel, rgb, size, dilate_px, background):
         dilate_px = DEFAULT_DILATE_PX
     if isinstance(dilate_px, bool) or not isinstance(dilate_px, (int, np.integer)):
         raise InputError(f"dilate_px must be an integer (-1 fills the image), got {dilate_px!r}")
-    image = np.empty((size * size, 3), np.uint8)
+    W, H = size
+    image = np.empty((W * H, 3), np.uint8)
     image[:] = np.clip(np.rint(background), 0, 255).astype(np.uint8)
     image[texel] = rgb
-    covered = np.zeros(size * size, bool)
+    covered = np.zeros(W * H, bool)
     covered[texel] = True
-    return dilate(image.reshape(size, size, 3), covered.reshape(size, size),
+    return dilate(image.reshape(H, W, 3), covered.reshape(H, W),
                   iterations=None if dilate_px < 0 else int(dilate_px))

@@ -84,7 +84,7 @@ class UnwrapResult:
         from uvbake.io.atomic import OutputSet
         from uvbake.io.export import textured_files
 
-        image = self.image if self.image is not None else _blank(self.report["atlas"]["texture_size_px"])
+        image = self.image if self.image is not None else _blank(atlas_size(self.report))
         colors = self.vertex_colors if keep_vertex_colors else None
         files = textured_files(path, self.V, self.F, self.corner_uv, image, vertex_colors=colors)
         names = [("path", p) for p in files]
@@ -99,7 +99,11 @@ class UnwrapResult:
 
 
 def _blank(size):
-    return np.full((size, size, 3), 255, np.uint8)
+    """A white texture of ``size`` texels (one side, or (width, height))."""
+    from uvbake.atlas.bake import texture_dims
+
+    W, H = texture_dims(size)
+    return np.full((H, W, 3), 255, np.uint8)
 
 
 def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.init, backend: str = DEFAULTS.backend,
@@ -121,8 +125,9 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
         not: with ``guarantee=False``).
     face_labels : (m,) int array, optional
         Per-face segment labels (overrides labels stored in the file). A chart never spans two labels.
-    texture_size_px : int or None
-        Side of the square texture (16 to 16384); None (with ``texel_density``): the atlas grows to fit.
+    texture_size_px : int, (int, int) or None
+        Side of the square texture (16 to 16384), or (width, height) for a rectangular one; None (with
+        ``texel_density``): the atlas grows to fit.
     gutter_px : int, optional
         Minimum gap between charts, in texels (default 4, or what ``mip_levels`` needs).
     texel_density : float, optional
@@ -211,7 +216,7 @@ def _unwrap(source, **opts):
                                                          "continuation")})
     if opts["bake"] not in BAKE_MODES:
         raise InputError(f"bake={opts['bake']!r} is not one of None, 'checker', 'vertex-colors'")
-    check_texture(opts["texture_size_px"], opts["gutter_px"], opts["texel_density"])
+    opts["texture_size_px"] = check_texture(opts["texture_size_px"], opts["gutter_px"], opts["texel_density"])
     opts["max_stretch"], opts["max_charts"] = check_budget(
         DEFAULT_MAX_STRETCH if opts["max_stretch"] is None else opts["max_stretch"], opts["max_charts"])
     if opts["weld"] not in (None, True, False):
@@ -224,7 +229,10 @@ def _unwrap(source, **opts):
     _stage_solve(run)
     packed, corner_uv, chart_ids, verdict = _pack_and_validate(run, {k: opts[k] for k in (
         "texture_size_px", "gutter_px", "texel_density", "mip_levels")})
-    opts["texture_size_px"], opts["gutter_px"] = packed.width_px, packed.gutter_px   # grown, or from mip_levels
+    # grown, or from mip_levels; one number for a square atlas, else [width, height]
+    opts["texture_size_px"] = packed.width_px if packed.width_px == packed.height_px else [packed.width_px,
+                                                                                          packed.height_px]
+    opts["gutter_px"] = packed.gutter_px
     run.note("pack", 1, 1)
     image = _stage_bake(run, corner_uv, packed)
     run.timings["total_s"] = time.perf_counter() - t0
@@ -355,7 +363,8 @@ def _report(run, corner_uv, packed, verdict):
                                                    energy=sum(r.energy for r in results))},
         "charts": [dict(name=c.name, label=c.label, triangles=int(len(c.F)), **d, **r.to_dict())
                    for c, r, d in zip(charts, results, per_chart)],
-        "atlas": dict(texture_size_px=opts["texture_size_px"], gutter_px=opts["gutter_px"], **_pack_summary(packed),
+        "atlas": dict(texture_size_px=int(packed.width_px), width_px=int(packed.width_px),
+                      height_px=int(packed.height_px), gutter_px=opts["gutter_px"], **_pack_summary(packed),
                       validation=verdict.to_dict()),
         **texels,
         "valid": bool(verdict.valid),
@@ -423,8 +432,9 @@ def _pack_and_validate(run, pack_options):
         from uvbake.atlas.packsplit import BoxLayouts, split_for_packing
 
         # splits are judged on the fast rectangle packer (each chart's rectangle found once), which places at
-        # a scale of its own: with a fixed texel density, trials are full packings
-        boxes = None if pack_options.get("texel_density") is not None else BoxLayouts(
+        # a scale of its own in a square: with a fixed texel density or a rectangular atlas, trials are full packings
+        square = not isinstance(pack_options["texture_size_px"], (tuple, list))
+        boxes = None if pack_options.get("texel_density") is not None or not square else BoxLayouts(
             pack_options["texture_size_px"], pack_options["gutter_px"], pack_options["mip_levels"])
         run.charts, run.results, packed, split = split_for_packing(run.charts, run.results, pack, boxes=boxes,
                                                                    max_charts=run.opts["max_charts"])
@@ -438,25 +448,44 @@ def _pack_and_validate(run, pack_options):
         chart_ids[c.face_index] = i
     run.timings["pack_s"] = time.perf_counter() - t
     t = time.perf_counter()
-    verdict = validate(corner_uv, F, chart_ids=chart_ids, resolution_px=packed.width_px)
+    verdict = validate(corner_uv, F, chart_ids=chart_ids, resolution_px=max(packed.width_px, packed.height_px))
     run.timings["validate_s"] = time.perf_counter() - t
     return packed, corner_uv, chart_ids, verdict
 
 
-def check_texture(texture_size_px: int | None, gutter_px: int | None, texel_density: float | None = None) -> None:
+def check_texture(texture_size_px: int | tuple[int, int] | None, gutter_px: int | None,
+                  texel_density: float | None = None) -> int | tuple[int, int] | None:
+    """Refuse a bad texture size or gutter (naming the parameter); returns the size as one number for a
+    square texture ((N, N) too), (width, height) for a rectangular one, None for a growing atlas."""
+    def whole(n):
+        return not isinstance(n, bool) and isinstance(n, (int, np.integer)) and 16 <= n <= 16384
+
+    size: int | tuple[int, int] | None
     if texture_size_px is None and texel_density is not None:
-        limit = 16384 // 8
-    elif isinstance(texture_size_px, bool) or not isinstance(texture_size_px, (int, np.integer)) \
-            or not 16 <= texture_size_px <= 16384:
-        raise InputError(f"texture_size_px={texture_size_px!r} must be a whole number of texels from 16 to 16384")
+        size, limit = None, 16384 // 8
+    elif isinstance(texture_size_px, (tuple, list)) and len(texture_size_px) == 2 and all(map(whole, texture_size_px)):
+        W, H = (int(n) for n in texture_size_px)
+        size, limit = (W if W == H else (W, H)), min(W, H) // 8
+    elif whole(texture_size_px):
+        size = int(texture_size_px)            # type: ignore[arg-type]
+        limit = size // 8
     else:
-        limit = texture_size_px // 8
+        raise InputError(f"texture_size_px={texture_size_px!r} must be a whole number of texels from 16 to 16384, "
+                         "or a (width, height) pair of them")
     if gutter_px is None:
-        return
+        return size
     if isinstance(gutter_px, bool) or not isinstance(gutter_px, (int, np.integer)) \
             or not 0 <= gutter_px <= limit:
         raise InputError(f"gutter_px={gutter_px!r} must be a whole number of texels from 0 to "
-                         f"{limit} (an eighth of the texture)")
+                         f"{limit} (an eighth of the texture's shorter side)")
+    return size
+
+
+def atlas_size(report: dict) -> int | tuple[int, int]:
+    """The atlas of an unwrap report as one side (square) or (width, height)."""
+    atlas = report["atlas"]
+    W, H = atlas.get("width_px", atlas["texture_size_px"]), atlas.get("height_px", atlas["texture_size_px"])
+    return int(W) if W == H else (int(W), int(H))
 
 
 def _pack_summary(packed):

@@ -63,9 +63,9 @@ def normalise_options(**options: Any) -> dict[str, Any]:
                               max_iter=u["max_iter"]).alpha
     u["tol"], u["max_iter"], u["seed"] = float(u["tol"]), int(u["max_iter"]), int(u["seed"])
     u["texel_density"] = check_texel_density(u["texel_density"])
-    check_texture(u["texture_size_px"], u["gutter_px"], u["texel_density"])
+    size = check_texture(u["texture_size_px"], u["gutter_px"], u["texel_density"])
     u["gutter_px"] = int(u["gutter_px"])
-    u["texture_size_px"] = None if u["texture_size_px"] is None else int(u["texture_size_px"])
+    u["texture_size_px"] = list(size) if isinstance(size, tuple) else size     # JSON-ready: a side or [W, H]
     if u["bake"] not in BAKE_MODES:
         raise InputError(f"bake={u['bake']!r} is not one of None, 'checker', 'vertex-colors'")
     for k in ("auto_cut", "repair", "guarantee", "continuation"):

@@ -13,6 +13,7 @@ from uvbake.batch.run import DEFAULT_TIMEOUT_S, OUTPUT_DEFAULTS, UNWRAP_DEFAULTS
 from uvbake.batch.run import run as run_batch
 from uvbake.cli.common import ArgumentParser
 from uvbake.cli.common import run as run_command
+from uvbake.cli.unwrap import texture_size
 from uvbake.errors import InputError
 from uvbake.flatten.options import BACKENDS, INITS
 
@@ -49,9 +50,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--no-auto-cut", action="store_true", help="refuse closed charts and charts with handles")
     g.add_argument("--no-repair", action="store_true", help="refuse non-manifold input")
     g.add_argument("--paper", action="store_true", help="the paper's formulation: no splitting, no continuation")
-    g.add_argument("--texture-size", type=int, default=None, metavar="PX",
-                   help=f"texture side in texels (default {UNWRAP_DEFAULTS['texture_size_px']}; with "
-                        f"--texel-density each texture grows to fit)")
+    g.add_argument("--texture-size", type=texture_size, default=None, metavar="PX|WxH",
+                   help=f"texture side in texels, or WIDTHxHEIGHT (default {UNWRAP_DEFAULTS['texture_size_px']}; "
+                        f"with --texel-density each texture grows to fit)")
     g.add_argument("--texel-density", type=float, default=None, metavar="PX_PER_UNIT",
                    help="fixed texels per world unit, the same for every asset of the batch (each texture "
                         "grows to fit, or with --texture-size an asset that cannot fit fails)")

@@ -64,6 +64,26 @@ def _typed(kind: type, lo: float | None = None, hi: float | None = None, *, open
     return parse
 
 
+def texture_size(text: str) -> int | tuple[int, int]:
+    """argparse type of --texture-size: ``PX`` (a square texture) or ``WxH``, each 16..16384 texels."""
+    parts = text.lower().split("x")
+    side = _typed(int, 16, 16384)
+    if len(parts) == 1:
+        return side(parts[0])
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"{text!r} is not PX or WIDTHxHEIGHT (e.g. 1024 or 2048x1024)")
+    W, H = side(parts[0]), side(parts[1])
+    return W if W == H else (W, H)
+
+
+texture_size.__name__ = "size"
+
+
+def size_text(size: int | tuple[int, int] | list[int]) -> str:
+    """1024, or 2048x1024."""
+    return f"{size[0]}x{size[1]}" if isinstance(size, (tuple, list)) else str(size)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of ``uvbake [unwrap] MESH ...``."""
     from uvbake import __version__
@@ -109,8 +129,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="weld coincident boundary vertices (default: only for triangle soups; a mesh's own "
                         "cuts stay cuts)")
     g = p.add_argument_group("atlas and texture")
-    g.add_argument("--texture-size", type=_typed(int, 16, 16384), default=None, metavar="PX",
-                   help="texture side in texels (default 1024; with --texel-density the texture grows to fit)")
+    g.add_argument("--texture-size", type=texture_size, default=None, metavar="PX|WxH",
+                   help="texture side in texels, or WIDTHxHEIGHT for a rectangular texture (default 1024; with "
+                        "--texel-density the texture grows to fit)")
     g.add_argument("--gutter", type=_typed(int, 0), default=None, metavar="PX",
                    help="gap between charts in texels (default 4, or what --mip-levels needs)")
     g.add_argument("--texel-density", type=_typed(float, 0.0, open_lo=True), default=None, metavar="PX_PER_UNIT",
@@ -195,9 +216,11 @@ def _check_atlas_args(args: argparse.Namespace) -> None:
         if args.gutter is not None and args.gutter < need:
             raise InputError(f"--gutter {args.gutter} is less than the {need} texels --mip-levels "
                              f"{args.mip_levels} needs; leave --gutter out or raise it")
-    if args.gutter is not None and args.texture_size is not None and args.gutter > args.texture_size // 8:
-        raise InputError(f"--gutter {args.gutter} must be at most {args.texture_size // 8} "
-                         f"(an eighth of --texture-size {args.texture_size})")
+    if args.gutter is not None and args.texture_size is not None:
+        short = min(args.texture_size) if isinstance(args.texture_size, tuple) else args.texture_size
+        if args.gutter > short // 8:
+            raise InputError(f"--gutter {args.gutter} must be at most {short // 8} "
+                             f"(an eighth of --texture-size {size_text(args.texture_size)}'s shorter side)")
     check_texture(args.texture_size, args.gutter, args.texel_density)
 
 
@@ -271,12 +294,12 @@ def _solve(args: argparse.Namespace, mode: str | None) -> Any:
 
 def _stage_outputs(result: Any, paths: _Outputs, args: argparse.Namespace, outs: OutputSet) -> list[Path]:
     """Write the textured mesh, the baked texture and the preview to their temporary files."""
-    from uvbake.atlas.pipeline import _blank
+    from uvbake.atlas.pipeline import _blank, atlas_size
     from uvbake.io.export import png_bytes, textured_files
     from uvbake.pictures import atlas_image
     from uvbake.render import preview
 
-    image = result.image if result.image is not None else _blank(result.report["atlas"]["texture_size_px"])
+    image = result.image if result.image is not None else _blank(atlas_size(result.report))
     files = textured_files(paths.mesh, result.V, result.F, result.corner_uv, image,
                            vertex_colors=result.vertex_colors if args.keep_vertex_colors else None)
     if paths.bake is not None:
@@ -304,11 +327,13 @@ def _write(result: Any, paths: _Outputs, args: argparse.Namespace, outs: OutputS
 
 
 def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
+    from uvbake.atlas.pipeline import atlas_size
+
     atlas = rep["atlas"]
     print(f"uvbake: {rep['triangles']} triangles -> {rep['charts_final']} chart(s) "
           f"({rep['charts_input']} before cuts and splits), alpha {alpha}; "
           f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}% "
-          f"of {atlas['texture_size_px']} px at {atlas.get('texel_density', 0):.4g} px/unit, "
+          f"of {size_text(atlas_size(rep))} px at {atlas.get('texel_density', 0):.4g} px/unit, "
           f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written) or 'nothing written'}")
     print(f"uvbake: {certificate_summary(rep['charts'])}")
     for w in (rep.get("repair") or {}).get("warnings", []):
