@@ -476,8 +476,9 @@ def check_texture(texture_size_px: int | tuple[int, int] | None, gutter_px: int 
         return size
     if isinstance(gutter_px, bool) or not isinstance(gutter_px, (int, np.integer)) \
             or not 0 <= gutter_px <= limit:
+        side = "'s shorter side" if isinstance(size, tuple) else ""
         raise InputError(f"gutter_px={gutter_px!r} must be a whole number of texels from 0 to "
-                         f"{limit} (an eighth of the texture's shorter side)")
+                         f"{limit} (an eighth of the texture{side})")
     return size
 
 

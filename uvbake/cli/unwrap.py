@@ -219,8 +219,9 @@ def _check_atlas_args(args: argparse.Namespace) -> None:
     if args.gutter is not None and args.texture_size is not None:
         short = min(args.texture_size) if isinstance(args.texture_size, tuple) else args.texture_size
         if args.gutter > short // 8:
+            side = "'s shorter side" if isinstance(args.texture_size, tuple) else ""
             raise InputError(f"--gutter {args.gutter} must be at most {short // 8} "
-                             f"(an eighth of --texture-size {size_text(args.texture_size)}'s shorter side)")
+                             f"(an eighth of --texture-size {size_text(args.texture_size)}{side})")
     check_texture(args.texture_size, args.gutter, args.texel_density)
 
 
