@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from uvbake.cancel import check_cancelled
-from uvbake.flatten.energy import DistortionEnergy, optimal_scales
+from uvbake.flatten.energy import DistortionEnergy, optimal_scales, scaled_start
 from uvbake.flatten.holes import holes
 from uvbake.flatten.options import SolveOptions
 from uvbake.flatten.solvers.certificate import certify
@@ -103,7 +103,7 @@ def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[n
     F = np.concatenate([np.asarray(f, dtype=np.int64) + o for (_, f, _), o in zip(items, first)])
     energy = DistortionEnergy(V, F, alpha=options.alpha, parts=vpart)
     uv0 = np.concatenate([np.asarray(s, dtype=np.float64) for s in starts]) / units[vpart][:, None]
-    uv0 = uv0 * optimal_scales(energy, uv0, fpart)[vpart][:, None]
+    uv0 = scaled_start(uv0, optimal_scales(energy, uv0, fpart), vpart)
     f_init = _part_energies(energy, uv0, fpart, len(items))
     if not np.all(np.isfinite(f_init)) or not np.all(np.isfinite(uv0)):
         return None                               # one chart's non-finite F would stall the whole batch

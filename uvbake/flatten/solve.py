@@ -32,7 +32,7 @@ from threadpoolctl import threadpool_limits
 
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
-from uvbake.flatten.energy import DistortionEnergy, optimal_scale
+from uvbake.flatten.energy import DistortionEnergy, optimal_scale, scaled_start
 from uvbake.flatten.holes import chart_energy, with_hole_fans
 from uvbake.flatten.joint import joint_groups, solve_joint
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
@@ -204,7 +204,7 @@ def _energy_and_start(Vn: np.ndarray, F: np.ndarray, uv_start: np.ndarray,
     energy = DistortionEnergy(Vn, F, alpha=options.alpha, fixed=fixed, weights=weights)
     # best uniform scale of the start (at alpha = 0: the scale of equal total area), so that the
     # pins of the alpha = 0 gauge sit at the surface's own scale
-    uv_start = uv_start * optimal_scale(energy, uv_start)
+    uv_start = scaled_start(uv_start, optimal_scale(energy, uv_start))
     if options.alpha == 0.0 and np.linalg.norm(uv_start[p] - uv_start[q]) == 0:
         uv_start[q] += [np.linalg.norm(Vn[q] - Vn[p]), 0.0]
     return energy, uv_start
