@@ -451,3 +451,63 @@ def test_borders_kept_through_merges_equal_the_borders_rebuilt_from_scratch(monk
     V = np.asarray(sphere.vertices) * (1 + 0.15 * rng.standard_normal((len(sphere.vertices), 1)))
     make_charts(V, np.asarray(sphere.faces))
     assert len(seen) >= 5 and all(seen)
+
+
+def test_the_overlap_check_sees_a_chart_shrunk_to_a_speck_beside_a_large_one():
+    # charts are laid side by side for one exact check; a chart the solve shrank to 1e-13 laid beside
+    # charts of unit size kept none of its shape's digits, and its folded triangles went unseen
+    from uvbake.atlas.guarantee import overlapping_pairs
+    from uvbake.mesh.charts import Chart
+
+    V, F = plane(nu=6, nv=6)
+    big = Chart(V, F, np.arange(len(V)), np.arange(len(F)))
+    folded = V[:, :2].copy()
+    folded[F[0, 0]] = folded[F[0, 1]] + 3.0 * (folded[F[0, 2]] - folded[F[0, 1]]) + [0.013, 0.021]   # pulled across
+    alone = overlapping_pairs([big], [folded])[0]
+    assert len(alone) > 0
+    for scale in (2.0 ** -43, 2.0 ** -600, 2.0 ** 43):              # powers of two: the same map, exactly
+        speck = folded * scale + 0.375 * scale                        # off the origin by its own size
+        # beside a chart of unit size that overlaps too (both go through the exact check, laid side by side)
+        found = overlapping_pairs([big, big], [folded, speck])
+        assert np.array_equal(found[0], alone) and np.array_equal(found[1], alone)
+
+
+#: A 13-triangle chart of a noisy sphere (20,480 triangles, 5 % radial noise): at alpha 0.1 its F falls
+#: all the way to the collapsed map (F = 0.1 per triangle), far below any map of its own size.
+ROUGH_PATCH_V = np.array([
+    [-0.721279062491, 0.445774975993, 0.474854875288], [-0.740770649028, 0.423602720432, 0.498869750237],
+    [-0.674944014143, 0.417138341244, 0.486223277232], [-0.75132560908, 0.428806897244, 0.552510426574],
+    [-0.709827329344, 0.438697415678, 0.557563048694], [-0.686117110346, 0.390745626631, 0.549102780499],
+    [-0.675278197898, 0.417344878163, 0.576756436591], [-0.672695371443, 0.454603328756, 0.474117946768],
+    [-0.747598864135, 0.506309881169, 0.576098725851], [-0.690139623138, 0.46851256861, 0.579538808633],
+    [-0.659799638105, 0.489166585208, 0.544323071674], [-0.716495443098, 0.528950024633, 0.541054991664]])
+ROUGH_PATCH_F = np.array([[0, 1, 2], [2, 3, 4], [4, 5, 6], [3, 5, 4], [1, 3, 2], [0, 2, 7], [2, 4, 8], [4, 6, 9],
+                          [8, 9, 10], [4, 9, 8], [2, 8, 7], [8, 10, 11], [8, 11, 7]])
+
+
+def test_a_chart_whose_energy_collapses_it_keeps_its_shape_for_the_density_scaling():
+    # the solve shrinks this chart a hundred billion times; about the point its start sat on (not the
+    # origin), its coordinates kept 5 digits, and scaled back to its area (equalise_density) the map's
+    # triangles disagreed with their own Jacobians. Solved about its centroid, the shrunk map keeps its
+    # shape: the areas agree and no triangle flips.
+    from uvbake.atlas.guarantee import equalise_density, overlapping_pairs
+    from uvbake.flatten.energy import jacobians, triangle_frames
+    from uvbake.flatten.options import SolveOptions
+    from uvbake.flatten.solve import solve_chart
+    from uvbake.mesh.arrays import signed_areas
+    from uvbake.mesh.charts import Chart
+
+    V, F = ROUGH_PATCH_V, ROUGH_PATCH_F
+    start = conformal_factor(V, F)[0] + 0.25                    # a conformal start, off the origin
+    r = solve_chart((V, F), SolveOptions(alpha=0.1), start)
+    assert np.ptp(r.uv, axis=0).max() < 1e-6 * np.ptp(start, axis=0).max()      # it does collapse
+    chart = Chart(V, F, np.arange(len(V)), np.arange(len(F)))
+    equalise_density(chart, r)
+    _, Q, area = triangle_frames(V, F)
+    A = jacobians(Q, F, r.uv)
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+    assert np.allclose(det * area, signed_areas(r.uv, F), rtol=1e-6, atol=0)
+    assert np.all(signed_areas(r.uv, F) > 0)
+    # its limit shape overlaps itself (the guarantee splits it): the check sees the same pairs beside a unit chart
+    pairs = overlapping_pairs([chart], [r.uv])[0]
+    assert len(pairs) and np.array_equal(overlapping_pairs([chart, chart], [V[:, :2], r.uv])[1], pairs)

@@ -251,7 +251,13 @@ def _exact_overlaps(charts, uvs):
     """The exact check of :func:`overlapping_pairs` on the charts laid side by side on shelves."""
     from uvbake.validate.core import overlap_pairs
 
+    # each chart at about unit size first, by a power of two (exact): a chart the solve shrank to a speck
+    # laid beside charts of unit size would keep none of its shape's digits (overlap is scale-free)
     lo = [np.asarray(uv).min(axis=0) for uv in uvs]
+    ext = [float((np.asarray(uv).max(axis=0) - low).max()) for uv, low in zip(uvs, lo)]
+    unit = [np.ldexp(1.0, -int(np.frexp(e)[1])) if e > 0 else 1.0 for e in ext]
+    uvs = [(np.asarray(uv) - low) * u for uv, low, u in zip(uvs, lo, unit)]
+    lo = [np.zeros(2) for _ in uvs]
     size = np.array([np.asarray(uv).max(axis=0) - low for uv, low in zip(uvs, lo)])
     gap = 0.05 * float(size.max()) + 1e-12
     width = max(float(np.sqrt((size + gap).prod(axis=1).sum())) * 1.5, float(size[:, 0].max()) + gap)
@@ -326,8 +332,12 @@ def _own_conformal_starts(charts, indices):
     return out
 
 
+#: The least cap on the guarantee's splits when none is given (solve_valid's max_splits).
+MIN_SPLITS = 256
+
+
 def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *, max_stretch: float,
-                workers: int | None = None, max_splits: int = 256, max_rounds: int = 8,
+                workers: int | None = None, max_splits: int | None = None, max_rounds: int = 8,
                 note: Callable[[str, int, int], None] | None = None) -> tuple[list[Chart], list[ParamResult], list[dict]]:
     """Solve every chart with the injective LM from its start, then check each chart once: what
     starves (or flipped because the start was not valid) is split once per bad region, overlapping
@@ -338,6 +348,9 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart."""
     note = note or (lambda stage, done, total: None)
     charts, starts = list(charts), list(starts)
+    # one split per chart, at least MIN_SPLITS: a rough scan's 1,500 charts needed 298 at alpha 0 (with
+    # the old fixed cap of 256, seven triangles were left flipped)
+    max_splits = max(MIN_SPLITS, len(charts)) if max_splits is None else max_splits
     results = _solve_flip_free(charts, starts, options, workers, lambda d, n, r: note("solve", d, n))
     splits: list[dict] = []
     todo = list(range(len(charts)))
