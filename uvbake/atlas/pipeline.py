@@ -111,7 +111,7 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
            face_labels: ArrayLike | None = None, texture_size_px: int | None = 1024, gutter_px: int | None = None,
            bake: str | None = None, auto_cut: bool = True, repair: bool = True, weld: bool | None = None,
            guarantee: bool = True, max_stretch: float | None = None, max_charts: int | None = None,
-           max_splits: int = 256, continuation: bool = DEFAULTS.continuation, workers: int | None = None,
+           max_splits: int | None = None, continuation: bool = DEFAULTS.continuation, workers: int | None = None,
            progress: Callable[[str, int, int], None] | None = None, callback: Callable | None = None,
            texel_density: float | None = None, mip_levels: int | None = None,
            pack_splits: bool = True) -> UnwrapResult:
@@ -153,8 +153,9 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
         at least 1/max_stretch (charts are cut before solving so their conformal maps keep it).
     max_charts : int, optional
         Chart budget: charting stops cutting at this many charts (the guarantee's splits still happen).
-    max_splits : int
-        Cap on the guarantee's splits; past it the remaining invalid charts are reported, not hidden.
+    max_splits : int, optional
+        Cap on the guarantee's splits (default: one per chart entering the solve, at least 256); past
+        it the remaining invalid charts are reported, not hidden.
     workers : int, optional
         Charts solved in parallel threads; the result does not depend on it.
     progress : callable, optional

@@ -26,7 +26,7 @@ from uvbake.flatten.options import DEFAULTS
 UNWRAP_DEFAULTS = dict(alpha=DEFAULTS.alpha, init=DEFAULTS.init, backend=DEFAULTS.backend, tol=DEFAULTS.tol,
                        max_iter=DEFAULTS.max_iter, seed=DEFAULTS.seed, texture_size_px=1024, gutter_px=4,
                        bake="checker", auto_cut=True, repair=True, guarantee=True,
-                       continuation=DEFAULTS.continuation, max_splits=256, texel_density=None)
+                       continuation=DEFAULTS.continuation, max_splits=None, texel_density=None)
 #: what else a batch writes per asset
 OUTPUT_DEFAULTS = dict(format="obj", preview_size_px=96, atlas_image="auto", atlas_size_px=256)
 DEFAULT_TIMEOUT_S = 600.0
