@@ -11,7 +11,8 @@ Built with trimesh and numpy (nothing read from disk, the same inputs on every m
 - ``soup``: 600 separate random triangles (600 charts);
 - ``mobius``: a Moebius strip (not orientable).
 For each: in-process ``uvbake.unwrap((V, F), alpha=a)`` without a bake and ``xatlas.parametrize``,
-process CPU seconds, charts, validity and least texel share, and uvbake's stage times.
+process CPU seconds, charts, validity, the least texel share and the area below a quarter of its
+fair share, and uvbake's stage times.
 """
 
 from __future__ import annotations
@@ -95,8 +96,8 @@ def main(argv=None):
 
     uvbake.unwrap(_mobius())                  # imports and caches warmed up once
     print("| input | triangles | alpha | uvbake CPU s | xatlas CPU s | ratio | charts (xatlas) | valid | "
-          "least texel share | uvbake stages (s) |")
-    print("|---|---:|---|---:|---:|---:|---|---|---:|---|")
+          "least texel share | area < 1/4 | uvbake stages (s) |")
+    print("|---|---:|---|---:|---:|---:|---|---|---:|---:|---|")
     for name, make in inputs().items():
         if args.only and name not in args.only:
             continue
@@ -119,7 +120,7 @@ def main(argv=None):
                                if k not in ("total_s", "bake_s"))
             print(f"| {name} | {len(F)} | {a:g} | {cpu:.2f} | {x_cpu:.2f} | {cpu / x_cpu:.1f} | "
                   f"{r.report['charts_final']} ({atlas.chart_count}) | {ok} | {r.report['min_texel_share']:.3f} | "
-                  f"{stages} |", flush=True)
+                  f"{100 * r.report['area_below_quarter']:.2f}% | {stages} |", flush=True)
 
 
 if __name__ == "__main__":
