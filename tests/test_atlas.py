@@ -511,3 +511,24 @@ def test_a_chart_whose_energy_collapses_it_keeps_its_shape_for_the_density_scali
     # its limit shape overlaps itself (the guarantee splits it): the check sees the same pairs beside a unit chart
     pairs = overlapping_pairs([chart], [r.uv])[0]
     assert len(pairs) and np.array_equal(overlapping_pairs([chart, chart], [V[:, :2], r.uv])[1], pairs)
+
+
+def test_copies_of_a_vertex_that_meet_to_rounding_get_one_uv_and_open_cuts_keep_theirs():
+    # a cut through a flat region closes in an isometric solve: its two sides meet 1e-17 apart, and the
+    # packing's rotation could round them across each other (a sliver overlap on a subdivided cow)
+    from uvbake.atlas.guarantee import snap_copies
+    from uvbake.flatten.solvers.result import ParamResult
+    from uvbake.mesh.charts import Chart
+
+    V, F = plane(nu=4, nv=3)
+    n = len(V)
+    # vertices n, n+1 are copies of mesh vertices 5 and 6 (a cut); n+2 a copy of 7 that stayed apart
+    Vc = np.concatenate([V, V[[5, 6, 7]]])
+    vmap = np.concatenate([np.arange(n), [5, 6, 7]])
+    uv = np.concatenate([V[:, :2], V[[5, 6, 7], :2] + [[1e-17, -2e-17], [0.0, 3e-17], [0.2, 0.0]]])
+    chart = Chart(Vc, F, vmap, np.arange(len(F)))
+    res = ParamResult(uv=uv.copy(), energy=0.0, grad_norm=0.0, iterations=0, converged=True, n_flipped=0,
+                      history=np.zeros(1), time_s=0.0, alpha=0.5, init="given", backend="lm")
+    out = snap_copies(chart, res).uv
+    assert np.array_equal(out[n], out[5]) and np.array_equal(out[n + 1], out[6])   # one UV, the lowest copy's
+    assert np.array_equal(out[n + 2], uv[n + 2]) and np.array_equal(out[:n], uv[:n])

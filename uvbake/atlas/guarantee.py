@@ -137,6 +137,36 @@ def equalise_density(chart: Chart, result: ParamResult) -> ParamResult:
     return result
 
 
+#: Copies of one mesh vertex in a chart (the two sides of a cut) whose UVs agree to this share of the
+#: chart's extent are given one UV (see snap_copies).
+SNAP_SHARE = 1e-12
+
+
+def snap_copies(chart: Chart, result: ParamResult) -> ParamResult:
+    """Give the copies of a mesh vertex in ``chart`` (the two sides of a cut or slit) one UV, the
+    lowest copy's, where their solved UVs agree to SNAP_SHARE of the chart's extent, in place. An
+    isometric solve closes a cut through a flat region: its sides meet to rounding (1e-17 apart on a
+    subdivided cow), and the packing's rotation then rounds them across each other, a sliver overlap
+    the exact validation counts. Given one UV, the copies stay equal through every transform, and the
+    validation welds them (same mesh vertex, same UV)."""
+    vm = np.asarray(chart.vertex_map)
+    order = np.argsort(vm, kind="stable")
+    same = vm[order][1:] == vm[order][:-1]
+    if not same.any():
+        return result
+    uv = np.array(result.uv, dtype=np.float64)
+    # each copy and the first (lowest-index) copy of its mesh vertex
+    group_start = np.concatenate([[True], ~same])
+    first = order[np.maximum.accumulate(np.where(group_start, np.arange(len(order)), 0))]
+    tol = SNAP_SHARE * float(np.ptp(uv, axis=0).max())
+    near = np.abs(uv[order] - uv[first]).max(axis=1) <= tol
+    move = order[near & ~group_start]
+    if len(move):
+        uv[move] = uv[first[near & ~group_start]]
+        result.uv = uv
+    return result
+
+
 def split_bad(chart: Chart, uv: ArrayLike, bad: np.ndarray) -> tuple[list[Chart], list[np.ndarray], dict]:
     """Split ``chart`` once so ``bad`` triangles go to one side; each side with the parent's map.
 
