@@ -285,7 +285,7 @@ def _exact_overlaps(charts, uvs):
     # laid beside charts of unit size would keep none of its shape's digits (overlap is scale-free)
     lo = [np.asarray(uv).min(axis=0) for uv in uvs]
     ext = [float((np.asarray(uv).max(axis=0) - low).max()) for uv, low in zip(uvs, lo)]
-    unit = [np.ldexp(1.0, -int(np.frexp(e)[1])) if e > 0 else 1.0 for e in ext]
+    unit = [np.ldexp(1.0, -int(np.clip(np.frexp(e)[1], -1000, 1000))) if e > 0 else 1.0 for e in ext]
     uvs = [(np.asarray(uv) - low) * u for uv, low, u in zip(uvs, lo, unit)]
     lo = [np.zeros(2) for _ in uvs]
     size = np.array([np.asarray(uv).max(axis=0) - low for uv, low in zip(uvs, lo)])
