@@ -85,8 +85,9 @@ def legend_lines(verdict: dict[str, Any], report: dict[str, Any] | None = None) 
         if atlas.get("efficiency") is not None:
             parts.append(f"packing {100 * atlas['efficiency']:.1f} %")
         if atlas.get("texture_size_px"):
-            W, H = atlas.get("width_px", atlas["texture_size_px"]), atlas.get("height_px", atlas["texture_size_px"])
-            parts.append(f"{W if W == H else f'{W}x{H}'} px, gutter {atlas.get('gutter_px')} px")
+            from uvbake.atlas.pipeline import atlas_size, size_text
+
+            parts.append(f"{size_text(atlas_size(report))} px, gutter {atlas.get('gutter_px')} px")
         if parts:
             lines.append(", ".join(parts))
         if final.get("angle_distortion_max") is not None:

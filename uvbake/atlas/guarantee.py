@@ -145,9 +145,8 @@ SNAP_SHARE = 1e-12
 def snap_copies(chart: Chart, result: ParamResult) -> ParamResult:
     """Give the copies of a mesh vertex in ``chart`` (the two sides of a cut or slit) one UV, the
     lowest copy's, where their solved UVs agree to SNAP_SHARE of the chart's extent, in place. An
-    isometric solve closes a cut through a flat region: its sides meet to rounding (1e-17 apart on a
-    subdivided cow), and the packing's rotation then rounds them across each other, a sliver overlap
-    the exact validation counts. Given one UV, the copies stay equal through every transform, and the
+    isometric solve closes a cut through a flat region: its sides meet to rounding, and the packing's
+    rotation can round them across each other, a sliver overlap the exact validation counts. Given one UV, the copies stay equal through every transform, and the
     validation welds them (same mesh vertex, same UV)."""
     vm = np.asarray(chart.vertex_map)
     order = np.argsort(vm, kind="stable")
@@ -378,8 +377,7 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart."""
     note = note or (lambda stage, done, total: None)
     charts, starts = list(charts), list(starts)
-    # one split per chart, at least MIN_SPLITS: a rough scan's 1,500 charts needed 298 at alpha 0 (with
-    # the old fixed cap of 256, seven triangles were left flipped)
+    # one split per chart, at least MIN_SPLITS: a fixed cap left rough scans of many charts invalid
     max_splits = max(MIN_SPLITS, len(charts)) if max_splits is None else max_splits
     results = _solve_flip_free(charts, starts, options, workers, lambda d, n, r: note("solve", d, n))
     splits: list[dict] = []

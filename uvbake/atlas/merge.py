@@ -74,8 +74,7 @@ def _merge_order(border: np.ndarray, area: list) -> tuple[np.ndarray, np.ndarray
     """Every (small chart, neighbour) pair merge_back may try, in the order it tries them: charts by
     area, smallest first; each chart's neighbours of the same label by shared border length, longest
     first, at most MERGE_TRIES each. Ranked once per set of charts (after each merge), then walked
-    past the pairs already tried (300 small closed parts took 1 s when each chart's neighbours were
-    looked up in turn, and 0.5 s of a noisy sphere's 2.7 s charting when every attempt ranked all pairs)."""
+    past the pairs already tried, not ranked again per attempt (docs/decisions/atlas-speed.md)."""
     if not len(border):
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     i, j = border[:, 0].astype(np.int64), border[:, 1].astype(np.int64)
@@ -159,8 +158,8 @@ def chart_borders(charts: list[Chart], cache: dict | None = None) -> np.ndarray:
 class _Borders:
     """:func:`chart_borders` of a list of charts kept up to date through merges: the same rows and the
     same sums (each pair's length added up in the order chart_borders adds it), at a cost per merge
-    that follows the merged charts' neighbourhoods instead of the whole atlas (a noisy sphere of 20,480
-    triangles: 1,500 charts, 362 merges, about 1 s of its 13 s charting rebuilding every border).
+    that follows the merged charts' neighbourhoods instead of the whole atlas (rebuilding every border
+    after each merge is quadratic in the chart count).
 
     A merge only welds boundary half-edges away, so the boundary half-edges (keyed by their mesh
     vertices) are a fixed universe; ``owner`` says which chart (list index) holds each one now.

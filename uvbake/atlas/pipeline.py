@@ -490,6 +490,11 @@ def atlas_size(report: dict) -> int | tuple[int, int]:
     return int(W) if W == H else (int(W), int(H))
 
 
+def size_text(size: int | tuple[int, int] | list[int]) -> str:
+    """A texture size as a user types it: 1024, or 2048x1024."""
+    return f"{size[0]}x{size[1]}" if isinstance(size, (tuple, list)) else str(size)
+
+
 def _pack_summary(packed):
     d = packed.to_dict() if hasattr(packed, "to_dict") else {}
     return {k: v for k, v in d.items() if k in ("efficiency", "scale", "texel_size_world", "texel_density", "method",

@@ -79,11 +79,6 @@ def texture_size(text: str) -> int | tuple[int, int]:
 texture_size.__name__ = "size"
 
 
-def size_text(size: int | tuple[int, int] | list[int]) -> str:
-    """1024, or 2048x1024."""
-    return f"{size[0]}x{size[1]}" if isinstance(size, (tuple, list)) else str(size)
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of ``uvbake [unwrap] MESH ...``."""
     from uvbake import __version__
@@ -219,6 +214,8 @@ def _check_atlas_args(args: argparse.Namespace) -> None:
     if args.gutter is not None and args.texture_size is not None:
         short = min(args.texture_size) if isinstance(args.texture_size, tuple) else args.texture_size
         if args.gutter > short // 8:
+            from uvbake.atlas.pipeline import size_text
+
             side = "'s shorter side" if isinstance(args.texture_size, tuple) else ""
             raise InputError(f"--gutter {args.gutter} must be at most {short // 8} "
                              f"(an eighth of --texture-size {size_text(args.texture_size)}{side})")
@@ -328,7 +325,7 @@ def _write(result: Any, paths: _Outputs, args: argparse.Namespace, outs: OutputS
 
 
 def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
-    from uvbake.atlas.pipeline import atlas_size
+    from uvbake.atlas.pipeline import atlas_size, size_text
 
     atlas = rep["atlas"]
     print(f"uvbake: {rep['triangles']} triangles -> {rep['charts_final']} chart(s) "

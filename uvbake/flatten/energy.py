@@ -427,10 +427,8 @@ def optimal_scales(energy: DistortionEnergy, uv: np.ndarray, face_parts: np.ndar
 def scaled_start(uv: np.ndarray, scale: Any, parts: np.ndarray | None = None) -> np.ndarray:
     """``uv * scale`` about each part's centroid (``scale`` one number, or one per part with ``parts``
     each vertex's part). F ignores translations, and a map the solve shrinks keeps the digits of its
-    shape only near the origin: at alpha 0-0.1 a rough chart's F can fall all the way to the
-    collapsed map, and a noisy sphere's 13-triangle chart, collapsed a millionth of a unit from the
-    point it started at, came back from the density scaling at 1e11 with a resolution of 1e-4 and
-    overlapping triangles."""
+    shape only near the origin: at alpha 0-0.1 a very rough chart's F can fall all the way to the
+    collapsed map, which the density scaling later blows back up (docs/decisions/atlas.md)."""
     uv = np.asarray(uv, dtype=np.float64)
     p = np.zeros(len(uv), np.int64) if parts is None else np.asarray(parts)
     k = int(p.max()) + 1 if len(p) else 0

@@ -5,13 +5,11 @@
 The same partition and the same numbering as
 ``scipy.sparse.csgraph.connected_components(coo_matrix((ones, (i, j)), shape=(n, n)), directed=False)``
 (components numbered by their lowest node), which the mesh code calls thousands of times on small
-graphs (two per piece cut, one per merge tried, ...): there the COO -> CSR conversions, the transpose
-and scipy's input validation cost about 180 us a call, the traversal a few. Here one CSR of the
-symmetric graph was built directly for scipy's strong-components traversal (90 against 170 us on 80
-nodes); now labels are propagated with numpy instead (every edge lowers the root of its larger label
-to its smaller one, then pointer jumping to the roots, until no edge joins two labels): 40-60 us on
-20-80 nodes, 85 against 183 us on 300. Larger graphs, and the rare graph that needs more than
-MAX_ROUNDS rounds, take scipy's undirected call as it is.
+graphs (two per piece cut, one per merge tried, ...), where scipy's conversions and input checks cost
+more than the traversal. Up to DIRECT_MAX_EDGES edges the labels are propagated with numpy instead:
+every edge lowers the root of its larger label to its smaller one, then pointer jumping to the roots,
+until no edge joins two labels. Larger graphs, and the rare graph that needs more than MAX_ROUNDS
+rounds, take scipy's undirected call as it is (measurements: docs/decisions/atlas-speed.md).
 """
 
 from __future__ import annotations
