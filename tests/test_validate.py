@@ -124,6 +124,83 @@ def test_fill_rule_on_a_random_triangulation_through_pixel_centres():
     assert r.valid, r.summary()
 
 
+def _claimed_by_brute_force(X, Y, rows, cols):
+    """Set of (triangle, row, col) whose pixel centre the top-left rule gives the triangle, pixel by
+    pixel from the edge functions (fixed point, 256 units per pixel), independent of _spans."""
+    S, h = 256, 128
+    out = set()
+    for t in range(len(X)):
+        x, y = [int(v) for v in X[t]], [int(v) for v in Y[t]]
+        area = (x[1] - x[0]) * (y[2] - y[0]) - (y[1] - y[0]) * (x[2] - x[0])
+        if area == 0:
+            continue
+        order = [0, 1, 2] if area > 0 else [0, 2, 1]
+        x, y = [x[i] for i in order], [y[i] for i in order]
+        for r in range(rows):
+            for j in range(cols):
+                px, py = S * j + h, S * r + h
+                inside = True
+                for e in range(3):
+                    ax, ay, bx, by = x[e], y[e], x[(e + 1) % 3], y[(e + 1) % 3]
+                    dx, dy = bx - ax, by - ay
+                    E = dx * (py - ay) - dy * (px - ax)
+                    if E < 0 or (E == 0 and not (dy < 0 or (dy == 0 and dx > 0))):
+                        inside = False
+                        break
+                if inside:
+                    out.add((t, r, j))
+    return out
+
+
+@pytest.mark.parametrize("division", ["float", "integer"])
+def test_spans_claim_the_pixel_centres_the_top_left_rule_gives(division, monkeypatch):
+    # corners on a quarter-pixel lattice put many pixel centres exactly on edges, horizontal edges
+    # included; both ways of dividing (float64 for ordinary coordinates, integers past _FLOAT_EXACT)
+    # must claim exactly the centres the edge functions give, each once per triangle
+    import uvbake.validate.raster as module
+
+    if division == "integer":
+        monkeypatch.setattr(module, "_FLOAT_EXACT", 0)
+    rng = np.random.default_rng(11)
+    rows, cols = 7, 9
+    X = rng.integers(-4, 4 * cols + 4, (60, 3)) * 64
+    Y = rng.integers(-4, 4 * rows + 4, (60, 3)) * 64
+    X[:20, 1], Y[:20, 1] = X[:20, 0] + 3 * 64, Y[:20, 0]        # a horizontal edge each
+    X[20:30, 2], Y[20:30, 2] = X[20:30, 0] - 5 * 64, Y[20:30, 0]  # and the other way round
+    tri, row, x0, x1 = module._spans(X, Y, rows, cols)
+    got = [(int(t), int(r), int(j)) for t, r, a, b in zip(tri, row, x0, x1) for j in range(a, b)]
+    assert len(got) == len(set(got))
+    expected = _claimed_by_brute_force(X, Y, rows, cols)
+    assert set(got) == expected and len(expected) > 100
+
+
+def test_sorted_span_check_agrees_with_the_pixel_grid():
+    # the check that skips the pixel grid on a valid atlas: a tiling claims each pixel once (covered
+    # pixels = the grid's count), and one triangle added twice, or a span shifted onto its neighbour's
+    # pixel, is seen as a pixel claimed twice
+    from scipy.spatial import Delaunay
+
+    import uvbake.validate.raster as module
+
+    rng = np.random.default_rng(5)
+    R = 256                                      # big triangles: fewer spans than pixels, the sorted check runs
+    pts = np.unique(np.concatenate([rng.integers(0, 2 * R + 1, size=(400, 2)) / (2 * R),
+                                    [[0, 0], [1, 0], [1, 1], [0, 1]]]), axis=0)
+    T = pts[Delaunay(pts).simplices]
+    Xi, Yi = module._fixed_point(T, np.zeros(2), 1.0 / R)
+    tri, row, x0, x1 = module._spans(Xi, Yi, R, R)
+    assert module._claimed_once(row, x0, x1, R)
+    keys, _, covered, complete = module._raster_pairs(tri, row, x0, x1, R, R, len(T))
+    grid = module._accumulate(row, x0, x1, R, R)
+    assert len(keys) == 0 and complete and covered == np.count_nonzero(grid) == R * R and grid.max() == 1
+    Xd, Yd = np.concatenate([Xi, Xi[7:8]]), np.concatenate([Yi, Yi[7:8]])
+    assert not module._claimed_once(*module._spans(Xd, Yd, R, R)[1:], R)
+    k = np.flatnonzero(x0 > 0)[0]                # the tiling claims the pixel left of it: another span's
+    x0b = x0.copy()
+    x0b[k] -= 1
+    assert ((row == row[k]) & (x1 == x0[k])).any() and not module._claimed_once(row, x0b, x1, R)
+
+
 def test_edge_and_vertex_neighbours_are_not_overlaps():
     V = np.array([[0.1, 0.1], [0.7, 0.13], [0.4, 0.8], [0.9, 0.9], [0.95, 0.2]])
     # faces 0 and 1 share the edge 1-2, faces 0 and 2 share only the vertex 1

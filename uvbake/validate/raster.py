@@ -18,6 +18,12 @@ _HALF = _S // 2  # pixel centre offset in fixed point
 
 
 
+#: Fixed-point coordinates below this (with at most 2^14 rows and columns) let _spans divide in float64:
+#: Bv (< 2^49) and dy S (< 2^32) are exact there, a non-integer quotient lies at least 2^-32 from the
+#: integers, more than float64's rounding error (2^-33) for quotients under 2^20, and larger quotients
+#: are clamped to [0, cols] either way, so the ceiling is the integer one wherever it matters.
+_FLOAT_EXACT = 1 << 23
+
 _BAND_PX = 1 << 22  # pixels per band of the coverage grid accumulation
 
 
@@ -75,32 +81,37 @@ def _spans(Xi, Yi, rows, cols, max_rows=None):
     csum = np.cumsum(nrows)
     if max_rows is not None and len(csum) and csum[-1] > max_rows:
         return None
+    r0, r1, bounds = _edge_bounds(X, Y, r0, r1)
+    big = max(int(np.abs(Xi).max(initial=0)), int(np.abs(Yi).max(initial=0)))
+    exact_in_float = big < _FLOAT_EXACT and rows <= 1 << 14 and cols <= 1 << 14
+    bounds = [np.ascontiguousarray(bounds[:, :, k], np.float64 if exact_in_float else np.int64) for k in range(3)]
+    nrows = np.where(area != 0, np.maximum(r1 - r0 + 1, 0), 0)
+    csum = np.cumsum(nrows)
     out = ([], [], [], [])
     start = 0
     m = len(Xi)
     while start < m:
         base = csum[start - 1] if start else 0
-        stop = int(np.searchsorted(csum, base + budgets.CHUNK, side="right"))
+        stop = int(np.searchsorted(csum, base + budgets.CHUNK // 8, side="right"))   # 8 x (s,) arrays below
         stop = max(stop, start + 1)
         idx = np.arange(start, stop)
         cnt = nrows[idx]
         t = np.repeat(idx, cnt)
         first = np.cumsum(cnt) - cnt
         row = r0[t] + (np.arange(len(t)) - np.repeat(first, cnt))
-        yc = row * _S + _HALF
-        lo = np.zeros(len(t), np.int64)
-        hi = np.full(len(t), cols, np.int64)
-        for e in range(3):
-            ax, ay = X[t, e], Y[t, e]
-            dx = X[t, (e + 1) % 3] - ax
-            dy = Y[t, (e + 1) % 3] - ay
-            Bv = dx * (yc - ay) - dy * (_HALF - ax)  # E at column j is Bv - dy * S * j
-            D = np.where(dy == 0, 1, dy * _S)
-            q = -((-Bv) // D)  # ceil(Bv / D), for either sign of D
-            lo = np.where(dy < 0, np.maximum(lo, q), lo)  # dy < 0: E >= 0  <=>  j >= ceil(Bv / D)
-            hi = np.where(dy > 0, np.minimum(hi, q), hi)  # dy > 0: E > 0  <=>  j < ceil(Bv / D)
-            flat_out = (dy == 0) & ~((Bv > 0) | ((Bv == 0) & (dx > 0)))
-            hi = np.where(flat_out, 0, hi)
+        # (s, 4) each: two lower-bound edges, then two upper-bound ones
+        A, C, D = (np.repeat(c[idx], cnt, axis=0) for c in bounds)
+        q = A * row.astype(A.dtype)[:, None]
+        q += C
+        if exact_in_float:
+            q /= D
+            np.ceil(q, out=q)
+        else:
+            np.negative(q, out=q)
+            q //= D
+            np.negative(q, out=q)
+        lo = np.maximum(np.maximum(q[:, 0], q[:, 1]), 0).astype(np.int64)
+        hi = np.minimum(np.minimum(q[:, 2], q[:, 3]), cols).astype(np.int64)
         keep = lo < hi
         for lst, arr in zip(out, (t, row, lo, hi)):
             lst.append(arr[keep])
@@ -110,6 +121,41 @@ def _spans(Xi, Yi, rows, cols, max_rows=None):
         return z, z, z, z
     tri, row, x0, x1 = (np.concatenate(o) for o in out)
     return tri, row, x0, x1
+
+
+def _edge_bounds(X, Y, r0, r1):
+    """Each counter-clockwise triangle's edges as column bounds linear in the row, for :func:`_spans`.
+
+    Along edge a->b the edge function at pixel centre (j, r) is ``E = Bv(r) - dy S j`` with
+    ``Bv(r) = dx S r + dx (h - ay) - dy (h - ax)``: an edge with dy < 0 admits ``j >= ceil(Bv / (dy S))``
+    and one with dy > 0 admits ``j < ceil(Bv / (dy S))``. A triangle has one or two of each; a single one
+    fills both of its slots. A horizontal edge (dy = 0) bounds no column: on every row strictly inside
+    the triangle E > 0, and the row through it (its first or last) is claimed only when dx > 0, so
+    with dx < 0 that row is dropped from ``r0`` or ``r1``.
+
+    Returns r0, r1 (adjusted) and bounds (m, 4, 3) int64: (dx S, dx (h - ay) - dy (h - ax), dy S) of
+    the lower-bound edges, then of the upper-bound ones. :func:`_spans` divides in float64 where that
+    gives the exact integer ceiling wherever it matters (see _FLOAT_EXACT).
+    """
+    Xb, Yb = np.roll(X, -1, axis=1), np.roll(Y, -1, axis=1)
+    dx, dy = Xb - X, Yb - Y
+    coef = np.stack([dx * _S, dx * (_HALF - Y) - dy * (_HALF - X), dy * _S], axis=2)   # (m, 3, 3)
+    lower, upper = dy < 0, dy > 0
+    # the edge filling a slot: the first and the last edge of each kind (the same one when there is one)
+    e = np.arange(3)[None, :]
+    first_lo = np.where(lower, e, 3).min(axis=1)
+    last_lo = np.where(lower, e, -1).max(axis=1)
+    first_up = np.where(upper, e, 3).min(axis=1)
+    last_up = np.where(upper, e, -1).max(axis=1)
+    slots = np.clip(np.stack([first_lo, last_lo, first_up, last_up], axis=1), 0, 2)
+    bounds = np.take_along_axis(coef, slots[:, :, None], axis=1)
+    # a horizontal edge with dx < 0 drops the row through it (when that row's centre lies on it)
+    flat = (dy == 0) & (dx < 0)
+    on_row = flat & ((Y - _HALF) % _S == 0)
+    row_of = (Y - _HALF) // _S
+    drop_first = (on_row & (row_of == r0[:, None])).any(axis=1)
+    drop_last = (on_row & (row_of == r1[:, None])).any(axis=1)
+    return r0 + drop_first, r1 - drop_last, bounds
 
 
 def _accumulate(row, x0, x1, rows, cols, weight=None):
@@ -133,6 +179,21 @@ def _accumulate(row, x0, x1, rows, cols, weight=None):
     return out
 
 
+def _claimed_once(row, x0, x1, cols):
+    """Whether no pixel lies in two spans: with the spans sorted by (row, first column), each must end
+    before the next begins. Sorting s spans is cheaper than a pass over the pixel grid when spans are
+    fewer than pixels; on a large count (s log s past the grid) the caller's grid pass decides."""
+    s = len(row)
+    if s < 2:
+        return True
+    if s * max(1, int(np.log2(s))) > 4 * (int(row.max()) + 1) * (cols + 1) or (int(row.max()) + 1) * (cols + 1) >= 1 << 31:
+        return False
+    base = row * (cols + 1)
+    start = (base + x0).astype(np.int32)
+    order = np.argsort(start)
+    return bool(np.all(start[order[1:]] >= (base + x1)[order[:-1]]))
+
+
 def _raster_pairs(tri, row, x0, x1, rows, cols, m):
     """Pairs of triangles claiming a common pixel, banded over rows so memory stays bounded.
 
@@ -151,6 +212,9 @@ def _raster_pairs(tri, row, x0, x1, rows, cols, m):
     complete : bool
         False when the work budget left some multiply-claimed pixels unexpanded.
     """
+    if _claimed_once(row, x0, x1, cols):   # the usual case (a valid atlas): no pixel grid needed
+        z = np.zeros(0, np.int64)
+        return z, z, int((x1 - x0).sum()), True
     band = max(1, _BAND_PX // (cols + 1))
     covered_px = 0
     keys = [np.zeros(0, np.int64)]
