@@ -81,7 +81,7 @@ def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
         return charts, results, packed, []
     for rec in records:
         rec.update(efficiency_before=float(packed.efficiency), efficiency_after=float(final.efficiency))
-    return cur_c, cur_r, final, records
+    return cur_c, [_with_energy(c, r) for c, r in zip(cur_c, cur_r)], final, records
 
 
 def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
@@ -232,16 +232,31 @@ def split_straight(chart: Chart, result: ParamResult,
 
 
 def _piece_result(result: ParamResult, chart: Chart, part: Chart) -> ParamResult:
-    """The parent's result restricted to ``part``: its map, its triangles' share of the energy and of
-    the flips; the solver's figures (iterations, history, certificate) stay the parent's."""
-    from uvbake.atlas.guarantee import _local_vertices, map_energy
-    from uvbake.flatten.energy import jacobians, triangle_frames
+    """The parent's result restricted to ``part``: its map; the solver's figures (iterations, history,
+    certificate) stay the parent's. Its energy and flips are the parent's until :func:`_with_energy`
+    (the pieces of rejected rounds, or cut again, never need theirs)."""
+    from uvbake.atlas.guarantee import _local_vertices
 
     uv = np.asarray(result.uv)[_local_vertices(chart, part)]
-    _, Q, _ = triangle_frames(part.V, part.F)
-    A = jacobians(Q, part.F, uv)
-    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
-    return dataclasses.replace(result, uv=uv, energy=map_energy(A, result.alpha),
-                               n_flipped=int(np.count_nonzero(det <= 0)),
-                               extra=dict(result.extra or {}) | {"split_for_packing_from": chart.name},
+    return dataclasses.replace(result, uv=uv, extra=dict(result.extra or {}) | {"split_for_packing_from": chart.name,
+                                                                              _PENDING: True},
                                flip_free_uv=None)
+
+
+#: Key in a piece's ``extra`` while its energy and flips are still its parent's.
+_PENDING = "_energy_pending"
+
+
+def _with_energy(part: Chart, result: ParamResult) -> ParamResult:
+    """A piece's result with its own triangles' share of the energy and of the flips (others as given)."""
+    if not (result.extra or {}).get(_PENDING):
+        return result
+    from uvbake.atlas.guarantee import map_energy
+    from uvbake.flatten.energy import jacobians, triangle_frames
+
+    _, Q, _ = triangle_frames(part.V, part.F)
+    A = jacobians(Q, part.F, result.uv)
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+    extra = {k: v for k, v in result.extra.items() if k != _PENDING}
+    return dataclasses.replace(result, energy=map_energy(A, result.alpha), n_flipped=int(np.count_nonzero(det <= 0)),
+                               extra=extra)
