@@ -129,7 +129,7 @@ def scale_to_border(packer: ShapePacker, p: ShapePacking, width: int, height: in
 
 def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, guess: float, *, coarse_px: int = 256,
               packs: int = 5, floor: float | None = None, rounds: int = 2,
-              order_packs: int = 2) -> ShapePacking | None:
+              order_packs: int = 2, swaps: int = 0) -> ShapePacking | None:
     """Largest common density found by packing the charts once rasterised, in strips of several widths.
 
     The charts are rasterised once, ``c`` times coarser than the atlas (as in fit_scale), at a density
@@ -140,7 +140,8 @@ def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, gues
     widths tried again; ``rounds - 1`` more rounds start at 0.95 of the best density found. With
     ``floor`` (a density to beat) a round stops after two trials below it. Then each other chart
     order of the packer (``packer.orders``) gets ``order_packs`` trials on the best round's raster,
-    from its best width. Returns the densest full-resolution ShapePacking, or None.
+    from its best width; then up to ``swaps`` orders more, each the best order with two charts swapped
+    (:func:`_swap_search`). Returns the densest full-resolution ShapePacking, or None.
     """
     g = int(gutter_px)
     c = _coarse_factor(width, height, coarse_px)
@@ -161,10 +162,42 @@ def fit_width(packer: ShapePacker, width: int, height: int, gutter_px: int, gues
         best, d0, w = q, d1, w1
     if best is None:
         return None
+    best_order = packer.orders[0]
     for order in packer.orders[1:] if order_packs else []:     # the same raster, other chart orders
-        q, _ = _width_trials(packer, width, height, g, c, cg, d0, w, order_packs, floor, order=order)
+        q, w1 = _width_trials(packer, width, height, g, c, cg, d0, w, order_packs, floor, order=order)
         if q is not None and q.density > best.density:
-            best = q
+            best, best_order, w = q, order, w1
+    if swaps and order_packs:
+        best = _swap_search(packer, width, height, g, c, cg, d0, w, best, best_order, swaps, order_packs)
+    return best
+
+
+def _swap_search(packer, width, height, g, c, cg, d0, w, best, order, evals, packs):
+    """First-improvement hill climb on the chart order: orders that swap two charts of the best one
+    (front pairs first: the big charts) are packed (``packs`` trials each, from the best width) until one
+    is denser, which becomes the best; at most ``evals`` orders in all. A bottom-left fill of a few large
+    charts is as good as the order it places them in, and neighbouring orders are often far apart
+    (docs/decisions/pack.md); returns the densest packing found."""
+    n = len(order)
+    tried = {tuple(int(i) for i in o) for o in packer.orders}
+    used = 0
+    while used < evals:
+        improved = False
+        for i, j in ((i, j) for i in range(n - 1) for j in range(i + 1, n)):
+            cand = np.array(order)
+            cand[[i, j]] = cand[[j, i]]
+            key = tuple(int(k) for k in cand)
+            if key in tried:
+                continue
+            tried.add(key)
+            used += 1
+            q, w1 = _width_trials(packer, width, height, g, c, cg, d0, w, packs, best.density, order=cand)
+            if q is not None and q.density > best.density:
+                best, order, w, improved = q, cand, w1, True
+            if improved or used >= evals:
+                break
+        if not improved:
+            break
     return best
 
 
