@@ -13,6 +13,26 @@ import numpy as np
 
 from uvbake.atlas.shapepack import ShapePacker, ShapePacking
 
+# Swapped chart orders (fit_width's swaps): a bottom-left fill of 5-8 large charts is only as good as
+# the order it places them in, and a hill climb on pair swaps of the best order finds much of what the
+# best order would give. Each swap costs two strip packings, so the budget is a work count: one swap
+# per FACES_PER_SWAP faces (about 5 % of the command's CPU), none below MIN_SWAPS (a climb that short
+# rarely gains), at most MAX_SWAPS; past SWAPS_UP_TO charts a swap changes little. Measurements:
+# docs/decisions/pack.md (2026-12-01, sixth session).
+SWAPS_UP_TO = 8
+MIN_SWAPS = 4
+MAX_SWAPS = 12
+FACES_PER_SWAP = 1500
+
+
+def swap_budget(n: int, faces: int) -> int:
+    """Swapped chart orders fit_width may try for ``n`` charts (more than 4: fewer try every base angle
+    instead) of ``faces`` triangles in all."""
+    if n > SWAPS_UP_TO:
+        return 0
+    k = min(MAX_SWAPS, faces // FACES_PER_SWAP)
+    return k if k >= MIN_SWAPS else 0
+
 
 def _coarse_factor(width, height, coarse_px):
     """The power of two ``c`` making the long side about ``coarse_px`` (the short side at least 32)."""

@@ -448,31 +448,11 @@ _COMPACT_FULL_FACES = 16384     # compaction at full resolution
 _COMPACT_CHARTS = 8
 _ORDERS_FROM = 4
 _ORDERS_UP_TO = 8
-# Swapped chart orders (fit.fit_width's swaps; docs/decisions/pack.md, 2026-12-01 sixth session): for 5-8
-# charts a bottom-left fill is as good as the order it places them in (beetle's five charts: the best
-# of all 120 orders packs 9 points denser than the area order), and a hill climb on pair swaps finds
-# much of that. Each
-# swap costs two strip packings (about 8 ms for 5 charts), so the budget is a work count: one swap per
-# _FACES_PER_SWAP faces (about 5 % of the command's CPU), none below _MIN_SWAPS (a climb that short
-# rarely gains), at most _MAX_SWAPS. Up to 8 charts only: on xatlas's 12-18 chart sets 12 swaps gained
-# 0..+2.1 points for 0.1-0.17 s.
-_SWAPS_UP_TO = 8
-_MIN_SWAPS = 4
-_MAX_SWAPS = 12
-_FACES_PER_SWAP = 1500
-
-
-def _swap_budget(n, faces):
-    """Swapped chart orders fit_width may try for ``n`` charts of ``faces`` triangles in all."""
-    if not _ORDERS_FROM < n <= _SWAPS_UP_TO:
-        return 0
-    k = min(_MAX_SWAPS, faces // _FACES_PER_SWAP)
-    return k if k >= _MIN_SWAPS else 0
 
 
 def _fit_free_scale(packer, W, H, g, guess):
     """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
-    from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border
+    from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border, swap_budget
 
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
     big = faces >= _BIG_MESH_FACES
@@ -483,7 +463,7 @@ def _fit_free_scale(packer, W, H, g, guess):
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
                       floor=guess, rounds=1,
                       order_packs=2 if _ORDERS_FROM < n and (n <= _ORDERS_UP_TO or big) else 0,
-                      swaps=_swap_budget(n, faces))
+                      swaps=swap_budget(n, faces) if _ORDERS_FROM < n else 0)
     if p is None and guess is not None:
         return None
     if p is None:
