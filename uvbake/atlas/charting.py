@@ -108,28 +108,30 @@ def _crease_parts(chart: Chart) -> list[Chart]:
     F, n = chart.F, len(chart.V)
     if len(F) < 2 * MIN_PIECE_FACES:
         return [chart]
-    fi, fj, _ = face_adjacency(F, n)
+    adj = face_adjacency(F, n, return_halfedges=True)
+    fi, fj = adj[:2]
     nrm = unit_normals(chart.V, F)
     smooth = np.einsum("ij,ij->i", nrm[fi], nrm[fj]) > np.cos(CREASE_SPLIT)
     m = len(F)
     nc, comp = components(m, fi[smooth], fj[smooth])
     if nc == 1:
         return [chart]
-    lab = _absorb_slivers(F, n, comp, triangle_areas(chart.V, F), SLIVER_SHARE)
+    lab = _absorb_slivers(F, n, comp, triangle_areas(chart.V, F), SLIVER_SHARE, adj)
     if len(np.unique(lab)) < 2:
         return [chart]
-    return sub_charts(chart, lab)
+    return sub_charts(chart, lab, adj)
 
 
-def sub_charts(chart: Chart, sub_labels: ArrayLike) -> list[Chart]:
+def sub_charts(chart: Chart, sub_labels: ArrayLike, adjacency: tuple | None = None) -> list[Chart]:
     """Split ``chart`` by per-face labels into edge-connected, manifold charts of the whole mesh.
 
     Each part's vertices are its corner fans, so parts touching themselves at a vertex get one copy
-    of that vertex per fan. Parts are ordered by first triangle."""
+    of that vertex per fan. Parts are ordered by first triangle. ``adjacency``: the chart's
+    ``face_adjacency(F, n, return_halfedges=True)``, when the caller has it."""
     F = chart.F
     m, n = len(F), len(chart.V)
     lab = np.asarray(sub_labels, dtype=np.int64)
-    fi, fj, _, hi, hj = face_adjacency(F, n, return_halfedges=True)
+    fi, fj, _, hi, hj = face_adjacency(F, n, return_halfedges=True) if adjacency is None else adjacency
     same = lab[fi] == lab[fj]
     nc, comp = components(m, fi[same], fj[same])
     from uvbake.mesh.cut import _corner_fans
@@ -293,10 +295,11 @@ def _smoothed(F, n, logf, area):
     return xv[F].mean(axis=1)
 
 
-def _absorb_slivers(F, n, comp_labels, area, min_share):
-    """Give pieces below ``min_share`` of the area (or MIN_PIECE_FACES) to their longest neighbour."""
+def _absorb_slivers(F, n, comp_labels, area, min_share, adjacency=None):
+    """Give pieces below ``min_share`` of the area (or MIN_PIECE_FACES) to their longest neighbour.
+    ``adjacency``: ``face_adjacency(F, n, ...)``, when the caller has it."""
     m = len(F)
-    fi, fj, e = face_adjacency(F, n)
+    fi, fj = face_adjacency(F, n)[:2] if adjacency is None else adjacency[:2]
     lab = comp_labels.copy()
     for _ in range(4):                                  # a few passes settle chains of slivers
         same = lab[fi] == lab[fj]
@@ -352,12 +355,13 @@ def _level_cut(field, fi, fj, w, area, lo, hi):
     return labels
 
 
-def _cut_by_factor(chart, logf, bound, *, area=None):
+def _cut_by_factor(chart, logf, bound, *, area=None, adjacency=None):
     """Labels cutting ``chart`` along a short iso-contour of its log area factor.
 
     The level is searched on the side that breaks the budget, between a quarter and the whole of the
-    budget away from the area-weighted median level; every piece on either side becomes a chart."""
-    from uvbake.mesh.cut import _dual_edges, seam_costs, split_where
+    budget away from the area-weighted median level; every piece on either side becomes a chart.
+    ``adjacency``: the chart's ``face_adjacency(F, n, return_halfedges=True)``, when known."""
+    from uvbake.mesh.cut import seam_costs, split_where
 
     V, F = chart.V, chart.F
     m, n = len(F), len(V)
@@ -367,8 +371,9 @@ def _cut_by_factor(chart, logf, bound, *, area=None):
     field = _smoothed(F, n, logf, area)
     o = np.argsort(field, kind="stable")
     ref = field[o][np.searchsorted(np.cumsum(area[o]), 0.5 * area.sum())]
-    fi, fj, ea, eb, _, _ = _dual_edges(F, n)
-    w = seam_costs(V, F, fi, fj, ea, eb)
+    adjacency = face_adjacency(F, n, return_halfedges=True) if adjacency is None else adjacency
+    fi, fj, e = adjacency[:3]
+    w = seam_costs(V, F, fi, fj, e[:, 0], e[:, 1])
     if ref - field.min() >= field.max() - ref:
         # a folded map: no level below the budget (log factor -bound against the mean), so every
         # region starving against the mean is cut off in this one round, not one region per re-solve
@@ -378,7 +383,7 @@ def _cut_by_factor(chart, logf, bound, *, area=None):
         side = _level_cut(field, fi, fj, w, area, lo, max(ref - 0.25 * bound, lo))
     else:
         side = _level_cut(field, fi, fj, w, area, ref + 0.25 * bound, ref + bound)
-    lab = _absorb_slivers(F, n, side, area, SLIVER_SHARE)
+    lab = _absorb_slivers(F, n, side, area, SLIVER_SHARE, adjacency)
     if len(np.unique(lab)) < 2:
         bad = np.flatnonzero(~np.isfinite(logf) | (logf < ref - bound))
         lab = split_where(V, F, bad) if m >= 2 else np.zeros(m, np.int64)
@@ -484,7 +489,8 @@ def _decide(st, chart, previous):
                                    seam_length=length, least_factor=float(np.exp(least))))
         st.queue.insert(0, (chart2, least))
         return
-    parts = sub_charts(chart, _cut_by_factor(chart, logf, st.bound, area=frames[1]))
+    adj = face_adjacency(chart.F, len(chart.V), return_halfedges=True)
+    parts = sub_charts(chart, _cut_by_factor(chart, logf, st.bound, area=frames[1], adjacency=adj), adj)
     st.budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=len(parts),
                                least_factor=float(np.exp(least))))
     for p in parts:

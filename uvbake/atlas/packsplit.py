@@ -204,7 +204,8 @@ def split_straight(chart: Chart, result: ParamResult,
     parent's map restricted to it; None when no cut gives two pieces."""
     from uvbake.atlas.charting import SLIVER_SHARE, _absorb_slivers, sub_charts
     from uvbake.atlas.maxrects import min_area_rect
-    from uvbake.mesh.cut import _dual_edges, seam_costs
+    from uvbake.mesh.cut import seam_costs
+    from uvbake.mesh.topology import face_adjacency
 
     F, uv = chart.F, np.asarray(result.uv)
     m, n = len(F), len(chart.V)
@@ -216,15 +217,17 @@ def split_straight(chart: Chart, result: ParamResult,
     cum = np.cumsum(a[order]) / a.sum()
     k = np.clip(np.searchsorted(cum, POSITIONS), 1, m - 1)
     side = x[:, None] > x[order][k][None, :]                   # (m, positions): the far side of each cut
-    fi, fj, ea, eb, _, _ = _dual_edges(F, n)
+    adj = face_adjacency(F, n, return_halfedges=True)
+    fi, fj, e = adj[:3]
+    ea, eb = e[:, 0], e[:, 1]
     cost = seam_costs(chart.V, F, fi, fj, ea, eb)
     w = np.linalg.norm(chart.V[ea] - chart.V[eb], axis=1)
     seams = ((side[fi] != side[fj]) * cost[:, None]).sum(axis=0)
     best = int(np.argmin(seams * (1.0 + IMBALANCE * np.abs(POSITIONS - 0.5))))
-    lab = _absorb_slivers(F, n, side[:, best].astype(np.int64), a, SLIVER_SHARE)
+    lab = _absorb_slivers(F, n, side[:, best].astype(np.int64), a, SLIVER_SHARE, adj)
     if len(np.unique(lab)) < 2:
         return None
-    parts = sub_charts(chart, lab)
+    parts = sub_charts(chart, lab, adj)
     if len(parts) < 2:
         return None
     seam = float(w[lab[fi] != lab[fj]].sum())
