@@ -81,6 +81,28 @@ def test_maxrects_places_every_box_exactly_where_the_reference_update_does(seed)
                 assert np.array_equal(got[0], ref[0]) and np.array_equal(got[1], ref[1])
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_the_few_boxes_packer_places_every_box_where_the_numpy_one_does(seed, monkeypatch):
+    # up to _FEW_BOXES boxes MaxRects runs on Python floats; with ties (equal sizes, sizes on a 1/16
+    # grid that touch exactly, contact scores summed over placed boxes) it must agree to the bit
+    import uvbake.atlas.maxrects as mr
+
+    rng = np.random.default_rng(100 + seed)
+    for trial in range(40):
+        n = int(rng.integers(1, mr._FEW_BOXES + 1))
+        sizes = rng.uniform(0.03, 0.45, (n, 2)) if trial % 2 else rng.integers(1, 6, (n, 2)) / 16.0
+        order = rng.permutation(n)
+        for rule in _RULES:
+            for turn in (True, False):
+                few = mr._maxrects_few(sizes, order, rule, turn)
+                monkeypatch.setattr(mr, "_FEW_BOXES", 0)
+                full = mr._maxrects(sizes, order, rule, turn)
+                monkeypatch.setattr(mr, "_FEW_BOXES", 8)
+                assert (few is None) == (full is None)
+                if full is not None:
+                    assert np.array_equal(few[0], full[0]) and np.array_equal(few[1], full[1])
+
+
 def _charts(seed, n=6):
     uvs, faces = chart_set(seed, n)
     return [np.asarray(u, float) for u in uvs], [np.asarray(f, np.int64) for f in faces]

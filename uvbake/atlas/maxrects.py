@@ -182,8 +182,15 @@ def _scores(rule, free, idx, w, h, placed):
         ov_x = np.clip(np.minimum(x1[:, None], px1) - np.maximum(x0[:, None], px0), 0, None)
         touch_x = (px1 == x0[:, None]) | (px0 == x1[:, None])
         touch_y = (py1 == y0[:, None]) | (py0 == y1[:, None])
-        contact = contact + (touch_x * ov_y).sum(1) + (touch_y * ov_x).sum(1)
+        # summed in the order the boxes were placed (an accumulation, unlike sum's pairwise order), as
+        # _score_few does: both packers give the same scores to the bit
+        contact = contact + np.cumsum(touch_x * ov_y, axis=1)[:, -1] + np.cumsum(touch_y * ov_x, axis=1)[:, -1]
     return -contact, free[idx, 1]
+
+
+#: Up to this many boxes _maxrects runs on Python floats (_maxrects_few): numpy's per-call cost is most
+#: of the work on a few boxes, and the split rounds' trial layouts pack 2-12 of them many times.
+_FEW_BOXES = 8
 
 
 def _maxrects(sizes, order, rule, allow_turn=True):
@@ -194,6 +201,8 @@ def _maxrects(sizes, order, rule, allow_turn=True):
     orientations of a box are scored together (ties: unturned first, then the lower free rectangle).
     """
     n = len(sizes)
+    if n <= _FEW_BOXES:
+        return _maxrects_few(sizes, order, rule, allow_turn)
     free = np.array([[0.0, 0.0, 1.0, 1.0]])
     placed = np.empty((n, 4))
     pos = np.zeros((n, 2))
@@ -238,6 +247,77 @@ def _maxrects(sizes, order, rule, allow_turn=True):
         cont &= ~((P[:, None, :] == A[None, :, :]).all(axis=2) & first)
         free = np.concatenate((old, P[~cont.any(axis=1)]))
     return pos, turned
+
+
+def _maxrects_few(sizes, order, rule, allow_turn=True):
+    """:func:`_maxrects` on Python floats, for at most _FEW_BOXES boxes: the same operations in the same
+    order (every score, the first of equal scores, the free rectangles' split and pruning), so the
+    same layout to the bit (tests/test_pack_trials.py compares them)."""
+    n = len(sizes)
+    free = [(0.0, 0.0, 1.0, 1.0)]
+    placed: list[tuple[float, float, float, float]] = []
+    pos = np.zeros((n, 2))
+    turned = np.zeros(n, dtype=bool)
+    for i in order:
+        w0, h0 = float(sizes[i][0]), float(sizes[i][1])
+        shapes = [(w0, h0), (h0, w0)] if allow_turn and w0 != h0 else [(w0, h0)]
+        best = None
+        for t, (W, H) in enumerate(shapes):                 # unturned first, then free rectangles in order
+            for f in free:
+                if f[2] - f[0] >= W and f[3] - f[1] >= H:
+                    key = _score_few(rule, f, W, H, placed)
+                    if best is None or key < best[0]:
+                        best = (key, f, t, W, H)
+        if best is None:
+            return None
+        _, f, t, W, H = best
+        r = (f[0], f[1], f[0] + W, f[1] + H)
+        pos[i] = (f[0], f[1])
+        turned[i] = bool(t)
+        placed.append(r)
+        old, hit = [], []
+        for q in free:
+            (hit if q[0] < r[2] and q[2] > r[0] and q[1] < r[3] and q[3] > r[1] else old).append(q)
+        pieces = ([(q[0], q[1], r[0], q[3]) for q in hit if q[0] < r[0]]        # left, right, below, above
+                  + [(r[2], q[1], q[2], q[3]) for q in hit if q[2] > r[2]]
+                  + [(q[0], q[1], q[2], r[1]) for q in hit if q[1] < r[1]]
+                  + [(q[0], r[3], q[2], q[3]) for q in hit if q[3] > r[3]])
+        A = old + pieces
+        keep = []
+        for k, p in enumerate(pieces):                      # inside another rectangle: dropped
+            ip = len(old) + k
+            inside = any(p[0] >= a[0] and p[1] >= a[1] and p[2] <= a[2] and p[3] <= a[3] and not (p == a and ip <= ia)
+                         for ia, a in enumerate(A))
+            if not inside:
+                keep.append(p)
+        free = old + keep
+    return pos, turned
+
+
+def _score_few(rule, f, w, h, placed):
+    """:func:`_scores` of one box at one free rectangle, on Python floats: (primary, secondary)."""
+    fw, fh = f[2] - f[0], f[3] - f[1]
+    lw, lh = fw - w, fh - h
+    if rule == "bssf":
+        return min(lw, lh), max(lw, lh)
+    if rule == "blsf":
+        return max(lw, lh), min(lw, lh)
+    if rule == "baf":
+        return fw * fh - w * h, min(lw, lh)
+    if rule == "bl":
+        return f[1] + h, f[0]
+    x0, y0 = f[0], f[1]
+    x1, y1 = x0 + w, y0 + h
+    contact = (int(x0 == 0) + int(x1 >= 1)) * h + (int(y0 == 0) + int(y1 >= 1)) * w
+    if placed:
+        sx = sy = 0.0
+        for px0, py0, px1, py1 in placed:                   # in the order placed, as _scores sums
+            if px1 == x0 or px0 == x1:
+                sx += max(min(y1, py1) - max(y0, py0), 0.0)
+            if py1 == y0 or py0 == y1:
+                sy += max(min(x1, px1) - max(x0, px0), 0.0)
+        contact = contact + sx + sy
+    return -contact, y0
 
 
 def _orders(wh):
