@@ -259,15 +259,7 @@ def _maxrects_few(sizes, order, rule, allow_turn=True):
     pos = np.zeros((n, 2))
     turned = np.zeros(n, dtype=bool)
     for i in order:
-        w0, h0 = float(sizes[i][0]), float(sizes[i][1])
-        shapes = [(w0, h0), (h0, w0)] if allow_turn and w0 != h0 else [(w0, h0)]
-        best = None
-        for t, (W, H) in enumerate(shapes):                 # unturned first, then free rectangles in order
-            for f in free:
-                if f[2] - f[0] >= W and f[3] - f[1] >= H:
-                    key = _score_few(rule, f, W, H, placed)
-                    if best is None or key < best[0]:
-                        best = (key, f, t, W, H)
+        best = _best_spot_few(free, float(sizes[i][0]), float(sizes[i][1]), rule, placed, allow_turn)
         if best is None:
             return None
         _, f, t, W, H = best
@@ -275,23 +267,42 @@ def _maxrects_few(sizes, order, rule, allow_turn=True):
         pos[i] = (f[0], f[1])
         turned[i] = bool(t)
         placed.append(r)
-        old, hit = [], []
-        for q in free:
-            (hit if q[0] < r[2] and q[2] > r[0] and q[1] < r[3] and q[3] > r[1] else old).append(q)
-        pieces = ([(q[0], q[1], r[0], q[3]) for q in hit if q[0] < r[0]]        # left, right, below, above
-                  + [(r[2], q[1], q[2], q[3]) for q in hit if q[2] > r[2]]
-                  + [(q[0], q[1], q[2], r[1]) for q in hit if q[1] < r[1]]
-                  + [(q[0], r[3], q[2], q[3]) for q in hit if q[3] > r[3]])
-        A = old + pieces
-        keep = []
-        for k, p in enumerate(pieces):                      # inside another rectangle: dropped
-            ip = len(old) + k
-            inside = any(p[0] >= a[0] and p[1] >= a[1] and p[2] <= a[2] and p[3] <= a[3] and not (p == a and ip <= ia)
-                         for ia, a in enumerate(A))
-            if not inside:
-                keep.append(p)
-        free = old + keep
+        free = _split_free_few(free, r)
     return pos, turned
+
+
+def _best_spot_few(free, w0, h0, rule, placed, allow_turn):
+    """(score, free rectangle, turned, w, h) of the best placement of a w0 x h0 box, or None: unturned
+    first, then the free rectangles in order; the first of equal scores wins."""
+    shapes = [(w0, h0), (h0, w0)] if allow_turn and w0 != h0 else [(w0, h0)]
+    best = None
+    for t, (W, H) in enumerate(shapes):
+        for f in free:
+            if f[2] - f[0] >= W and f[3] - f[1] >= H:
+                key = _score_few(rule, f, W, H, placed)
+                if best is None or key < best[0]:
+                    best = (key, f, t, W, H)
+    return best
+
+
+def _split_free_few(free, r):
+    """The free rectangles once box ``r`` is placed, as _maxrects keeps them: the untouched ones, then
+    the left, right, below and above pieces of those it hits, without pieces inside another rectangle
+    (of equal ones the first stays)."""
+    old, hit = [], []
+    for q in free:
+        (hit if q[0] < r[2] and q[2] > r[0] and q[1] < r[3] and q[3] > r[1] else old).append(q)
+    pieces = ([(q[0], q[1], r[0], q[3]) for q in hit if q[0] < r[0]]
+              + [(r[2], q[1], q[2], q[3]) for q in hit if q[2] > r[2]]
+              + [(q[0], q[1], q[2], r[1]) for q in hit if q[1] < r[1]]
+              + [(q[0], r[3], q[2], q[3]) for q in hit if q[3] > r[3]])
+    A = old + pieces
+
+    def inside(ip, p):
+        return any(p[0] >= a[0] and p[1] >= a[1] and p[2] <= a[2] and p[3] <= a[3] and not (p == a and ip <= ia)
+                   for ia, a in enumerate(A))
+
+    return old + [p for k, p in enumerate(pieces) if not inside(len(old) + k, p)]
 
 
 def _score_few(rule, f, w, h, placed):
