@@ -201,7 +201,8 @@ def split_straight(chart: Chart, result: ParamResult,
     """``chart`` cut across the long axis of its map's minimum-area rectangle (``theta``: that
     rectangle's angle, uvbake.atlas.maxrects.min_area_rect, when known), at the area quantile in
     POSITIONS whose 3D seam is shortest (slivers given back to a neighbour), each piece with the
-    parent's map restricted to it; None when no cut gives two pieces."""
+    parent's map restricted to it (its energy and flips are the parent's until :func:`_with_energy`);
+    None when no cut gives two pieces."""
     from uvbake.atlas.charting import SLIVER_SHARE, _absorb_slivers, sub_charts
     from uvbake.atlas.maxrects import min_area_rect
     from uvbake.mesh.cut import seam_costs
