@@ -81,7 +81,8 @@ def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
         return charts, results, packed, []
     for rec in records:
         rec.update(efficiency_before=float(packed.efficiency), efficiency_after=float(final.efficiency))
-    return cur_c, [_with_energy(c, r) for c, r in zip(cur_c, cur_r)], final, records
+    solved = {id(r) for r in results}                    # the others are pieces, their energy still the parent's
+    return cur_c, [r if id(r) in solved else _with_energy(c, r) for c, r in zip(cur_c, cur_r)], final, records
 
 
 def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
@@ -242,25 +243,16 @@ def _piece_result(result: ParamResult, chart: Chart, part: Chart) -> ParamResult
     from uvbake.atlas.guarantee import _local_vertices
 
     uv = np.asarray(result.uv)[_local_vertices(chart, part)]
-    return dataclasses.replace(result, uv=uv, extra=dict(result.extra or {}) | {"split_for_packing_from": chart.name,
-                                                                              _PENDING: True},
+    return dataclasses.replace(result, uv=uv, extra=dict(result.extra or {}) | {"split_for_packing_from": chart.name},
                                flip_free_uv=None)
 
 
-#: Key in a piece's ``extra`` while its energy and flips are still its parent's.
-_PENDING = "_energy_pending"
-
-
 def _with_energy(part: Chart, result: ParamResult) -> ParamResult:
-    """A piece's result with its own triangles' share of the energy and of the flips (others as given)."""
-    if not (result.extra or {}).get(_PENDING):
-        return result
+    """A piece's result with its own triangles' share of the energy and of the flips."""
     from uvbake.atlas.guarantee import map_energy
     from uvbake.flatten.energy import jacobians, triangle_frames
 
     _, Q, _ = triangle_frames(part.V, part.F)
     A = jacobians(Q, part.F, result.uv)
     det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
-    extra = {k: v for k, v in result.extra.items() if k != _PENDING}
-    return dataclasses.replace(result, energy=map_energy(A, result.alpha), n_flipped=int(np.count_nonzero(det <= 0)),
-                               extra=extra)
+    return dataclasses.replace(result, energy=map_energy(A, result.alpha), n_flipped=int(np.count_nonzero(det <= 0)))
