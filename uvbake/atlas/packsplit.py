@@ -81,8 +81,14 @@ def split_for_packing(charts: Sequence[Chart], results: Sequence[ParamResult],
         return charts, results, packed, []
     for rec in records:
         rec.update(efficiency_before=float(packed.efficiency), efficiency_after=float(final.efficiency))
-    solved = {id(r) for r in results}                    # the others are pieces, their energy still the parent's
-    return cur_c, [r if id(r) in solved else _with_energy(c, r) for c, r in zip(cur_c, cur_r)], final, records
+    return cur_c, _own_energies(cur_c, cur_r, results), final, records
+
+
+def _own_energies(charts, results, solved):
+    """``results`` with every piece's own energy and flips (:func:`_with_energy`); the ``solved``
+    results (not pieces) as they are."""
+    ids = {id(r) for r in solved}
+    return [r if id(r) in ids else _with_energy(c, r) for c, r in zip(charts, results)]
 
 
 def _rounds(charts, results, cur, trial_pack, max_charts, rect=None):
