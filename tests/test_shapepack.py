@@ -9,9 +9,10 @@ crossings), never with uvbake's own min_chart_distance alone.
 import numpy as np
 import pytest
 
+from uvbake.atlas import shapepack
 from uvbake.atlas.distance import boundary_halfedges
 from uvbake.atlas.pack import pack_charts
-from uvbake.atlas.shapepack import footprint, gutter_element, mip_gutter_px
+from uvbake.atlas.shapepack import footprint, footprints, gutter_element, mip_gutter_px
 from uvbake.errors import InputError
 
 from test_pack import edges_cross, grid_chart, min_gap, signed_areas, star_chart
@@ -103,6 +104,49 @@ def test_quarter_turned_footprint_is_the_turned_charts_footprint():
     turned = np.column_stack([h - q[:, 1], q[:, 0]])       # what ShapePacker does for a quarter turn
     direct = footprint(turned, F, B, none)
     np.testing.assert_array_equal(np.rot90(fp, -1), direct)
+
+
+def _squares_meeting_triangles(q, F, h, w):
+    """Brute force: texel (r, c) whose closed unit square meets a triangle (separating axes: the
+    square's two, each triangle's three edge normals)."""
+    T = q[F]
+    r, c = np.mgrid[0:h, 0:w]
+    lo = np.column_stack([c.ravel(), r.ravel()]).astype(float)
+    meet = np.ones((len(lo), len(T)), bool)
+    for ax in range(2):
+        meet &= (lo[:, ax, None] <= T[:, :, ax].max(axis=1)[None]) & (lo[:, ax, None] + 1 >= T[:, :, ax].min(axis=1)[None])
+    corners = lo[:, None, :] + np.array([[0, 0], [1, 0], [0, 1], [1, 1]])[None]
+    for k in range(3):
+        e = T[:, (k + 1) % 3] - T[:, k]
+        nrm = np.column_stack([-e[:, 1], e[:, 0]])
+        pt = np.einsum("tcd,td->tc", T, nrm)
+        ps = np.einsum("scd,td->stc", corners, nrm)
+        meet &= (ps.min(axis=2) <= pt.max(axis=1)[None]) & (ps.max(axis=2) >= pt.min(axis=1)[None])
+    return meet.any(axis=1).reshape(h, w)
+
+
+def test_charts_rasterised_together_get_exactly_the_texels_their_triangles_meet(monkeypatch):
+    """footprints() lays the charts' canvases end to end; each chart must get exactly the texels whose
+    square meets one of its triangles (brute force), in one group or several, folded charts included
+    (coordinates are random reals: no square is within 1e-6 of touching a triangle by chance)."""
+    rng = np.random.default_rng(7)
+    uvs, faces = mixed_charts(11, n=12)
+    qs, Bs, flips = [], [], []
+    for k, (uv, F) in enumerate(zip(uvs, faces)):
+        q = uv * rng.uniform(3, 20)
+        if k % 4 == 1:                               # a fold: one vertex pulled across its fan
+            q[F[0, 0]] += 0.8 * (q[F[0, 1]] - q[F[0, 0]]) + 0.8 * (q[F[0, 2]] - q[F[0, 0]])
+        qs.append(q - q.min(axis=0) + 2e-7)
+        Bs.append(boundary_halfedges(F))
+        sa = signed_areas(qs[-1], F)
+        flips.append(np.flatnonzero(sa * np.sign(sa.sum()) <= 0))
+    assert sum(len(f) > 0 for f in flips) >= 2
+    for cells in (1 << 22, 300):                      # one group; several (a chart alone when bigger)
+        monkeypatch.setattr(shapepack, "_BATCH_CELLS", cells)
+        together = footprints(qs, faces, Bs, flips)
+        assert len(together) == len(qs)
+        for q, F, fp in zip(qs, faces, together):
+            np.testing.assert_array_equal(fp, _squares_meeting_triangles(q, F, *fp.shape))
 
 
 @pytest.mark.parametrize("g", [0, 1, 2, 3, 4, 7])

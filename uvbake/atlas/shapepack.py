@@ -49,7 +49,8 @@ def _ranges(lo, hi):
 
 
 def _supercover(P0, P1):
-    """Rows and columns of every texel whose closed square a segment meets (widened by _EPS)."""
+    """Rows and columns of every texel whose closed square a segment meets (widened by _EPS), and the
+    segment each belongs to."""
     x0, x1 = P0[:, 0], P1[:, 0]
     e, col = _ranges(np.floor(np.minimum(x0, x1) - _EPS).astype(np.int64),
                      np.floor(np.maximum(x0, x1) + _EPS).astype(np.int64))
@@ -64,11 +65,12 @@ def _supercover(P0, P1):
     yb = a[:, 1] + t1 * (b[:, 1] - a[:, 1])
     k, row = _ranges(np.floor(np.minimum(ya, yb) - _EPS).astype(np.int64),
                      np.floor(np.maximum(ya, yb) + _EPS).astype(np.int64))
-    return row, col[k]
+    return row, col[k], e[k]
 
 
 def _centres_in_triangles(T, h, w):
-    """Texels whose centre lies in (or on) one of the triangles ``T (t,3,2)``, either orientation."""
+    """Texels whose centre lies in (or on) one of the triangles ``T (t,3,2)``, either orientation, inside
+    an ``h[i] x w[i]`` canvas for triangle i; (rows, columns, triangles)."""
     lo = np.ceil(T.min(axis=1) - 0.5 - _EPS).astype(np.int64)
     hi = np.floor(T.max(axis=1) - 0.5 + _EPS).astype(np.int64)
     tx, cx = _ranges(lo[:, 0], hi[:, 0])
@@ -82,8 +84,8 @@ def _centres_in_triangles(T, h, w):
     d1, d2, d3 = cross(A, B), cross(B, C), cross(C, A)
     tol = _EPS * np.maximum(1.0, np.abs(d1) + np.abs(d2) + np.abs(d3))
     inside = (((d1 >= -tol) & (d2 >= -tol) & (d3 >= -tol)) | ((d1 <= tol) & (d2 <= tol) & (d3 <= tol)))
-    keep = inside & (cy >= 0) & (cy < h) & (cx >= 0) & (cx < w)
-    return cy[keep], cx[keep]
+    keep = inside & (cy >= 0) & (cy < h[t]) & (cx >= 0) & (cx < w[t])
+    return cy[keep], cx[keep], t[keep]
 
 
 def footprint(q: np.ndarray, F: np.ndarray, bedges: np.ndarray, flipped: np.ndarray) -> np.ndarray:
@@ -101,9 +103,39 @@ def footprint(q: np.ndarray, F: np.ndarray, bedges: np.ndarray, flipped: np.ndar
     -------
     (h,w) bool array: texel ``[r, c]`` is set iff its closed square meets a triangle (to _EPS).
     """
-    w = int(np.floor(q[:, 0].max() + _EPS)) + 1
-    h = int(np.floor(q[:, 1].max() + _EPS)) + 1
-    P0, P1 = q[bedges[:, 0]], q[bedges[:, 1]]
+    return footprints([q], [F], [bedges], [flipped])[0]
+
+
+#: canvas texels rasterised together by footprints() (its int32 winding counts: 16 MB)
+_BATCH_CELLS = 1 << 22
+
+
+def footprints(qs: list, Fs: list, bedges: list, flipped: list) -> list:
+    """:func:`footprint` of several charts (lists of its arguments), rasterised together: the charts'
+    canvases lie end to end in one flat array, so each step is one numpy pass over all of them (a
+    chart of 40 triangles alone costs the per-call overhead of some 20 numpy calls). Bit for bit the
+    same texels as one chart at a time; groups of about _BATCH_CELLS texels bound the memory."""
+    w = np.array([int(np.floor(q[:, 0].max() + _EPS)) + 1 for q in qs], np.int64)   # one per chart
+    h = np.array([int(np.floor(q[:, 1].max() + _EPS)) + 1 for q in qs], np.int64)
+    cells = h * (w + 1)
+    out, i0 = [], 0
+    while i0 < len(qs):                       # one iteration per group of charts
+        i1 = i0 + max(1, int(np.searchsorted(np.cumsum(cells[i0:]), _BATCH_CELLS, side="right")))
+        out += _footprints_group(qs[i0:i1], Fs[i0:i1], bedges[i0:i1], flipped[i0:i1], h[i0:i1], w[i0:i1])
+        i0 = i1
+    return out
+
+
+def _footprints_group(qs, Fs, bedges, flipped, h, w):
+    """footprints() of one group: canvases ``h[i] x (w[i] + 1)`` end to end (the extra column takes
+    crossings right of the last texel), rows summed by one cumulative sum less each row's start."""
+    cells = h * (w + 1)
+    off = np.cumsum(cells) - cells
+    nv = np.array([len(q) for q in qs])
+    Q = np.concatenate(qs)
+    B = np.concatenate(bedges) + np.repeat(np.cumsum(nv) - nv, [len(b) for b in bedges])[:, None]
+    chart = np.repeat(np.arange(len(qs)), [len(b) for b in bedges])
+    P0, P1 = Q[B[:, 0]], Q[B[:, 1]]
     # winding number at texel centres: signed crossings of each row's centre line, summed from the left
     ya, yb = P0[:, 1], P1[:, 1]
     e, r = _ranges(np.ceil(np.minimum(ya, yb) - 0.5).astype(np.int64),
@@ -111,20 +143,29 @@ def footprint(q: np.ndarray, F: np.ndarray, bedges: np.ndarray, flipped: np.ndar
     yc = r + 0.5
     xa, xb, y0, y1 = P0[e, 0], P1[e, 0], ya[e], yb[e]
     x = xa + (yc - y0) * (xb - xa) / (y1 - y0)
-    c = np.clip(np.ceil(x - 0.5).astype(np.int64), 0, w)
-    diff = np.zeros((h, w + 1), np.int32)
-    np.add.at(diff, (r, c), np.where(y1 > y0, 1, -1).astype(np.int32))
-    fp = np.cumsum(diff, axis=1, dtype=np.int32)[:, :w] != 0     # int32 sums: 2.3x faster than the default int64
-    rr, cc = _supercover(P0, P1)
-    fp[rr, cc] = True
-    if len(flipped):
-        T = q[F[flipped]]
-        rr, cc = _centres_in_triangles(T, h, w)
-        fp[rr, cc] = True
+    ce = chart[e]
+    c = np.clip(np.ceil(x - 0.5).astype(np.int64), 0, w[ce])
+    diff = np.zeros(int(cells.sum()), np.int32)
+    np.add.at(diff, off[ce] + r * (w[ce] + 1) + c, np.where(y1 > y0, 1, -1).astype(np.int32))
+    run = np.cumsum(diff, dtype=np.int32)        # int32 sums: 2.3x faster than the default int64
+    rc, start = _ranges(np.zeros(len(qs), np.int64), h - 1)          # every row: its chart, its start
+    start = off[rc] + start * (w[rc] + 1)
+    before = np.where(start > 0, run[np.maximum(start - 1, 0)], 0)
+    run -= np.repeat(before, (w + 1)[rc]).astype(np.int32)
+    fp = run != 0
+    rr, cc, k = _supercover(P0, P1)
+    fp[off[chart[k]] + rr * (w[chart[k]] + 1) + cc] = True
+    flip = [i for i in range(len(qs)) if len(flipped[i])]               # one per chart with flipped triangles
+    if flip:
+        T = np.concatenate([qs[i][Fs[i][flipped[i]]] for i in flip])
+        tc = np.repeat(flip, [len(flipped[i]) for i in flip])
+        rr, cc, t = _centres_in_triangles(T, h[tc], w[tc])
+        fp[off[tc[t]] + rr * (w[tc[t]] + 1) + cc] = True
         E = np.concatenate([T, T[:, [1, 2, 0]]], axis=1).reshape(-1, 2, 2)
-        rr, cc = _supercover(E[:, 0], E[:, 1])
-        fp[rr, cc] = True
-    return fp
+        rr, cc, k = _supercover(E[:, 0], E[:, 1])
+        ec = np.repeat(tc, 3)[k]
+        fp[off[ec] + rr * (w[ec] + 1) + cc] = True
+    return [fp[o:o + n].reshape(hi, wi + 1)[:, :wi] for o, n, hi, wi in zip(off, cells, h, w)]
 
 
 def _raw_runs(fp):
@@ -383,7 +424,7 @@ class ShapePacker:
             o = np.lexsort((np.arange(len(uvs)), -key))
             if not any(np.array_equal(o, q) for q in self.orders):
                 self.orders.append(o)
-        self._density, self._cands, self._dilated = None, {}, {}          # footprints at the last density
+        self._density, self._cands, self._dilated, self._base = None, {}, {}, {}   # footprints at the last density
         self._hull_idx, self._hulls = hulls, None
 
     def hull_points(self) -> tuple[np.ndarray, np.ndarray]:
@@ -410,12 +451,14 @@ class ShapePacker:
 
     def _cached(self, i, density):
         """Chart i's candidates at ``density`` with their runs; kept while the density stays the same
-        (the width search packs one density several times)."""
+        (the width search packs one density several times). Every chart's base footprints at a new
+        density are rasterised together (footprints())."""
         if density != self._density:
             self._density, self._cands, self._dilated = density, {}, {}
+            self._base = self._base_footprints(density)
         if i not in self._cands:
             out, raw = [], []
-            for k, (fp, theta, t) in enumerate(self._candidates(i, density)):
+            for k, (fp, theta, t) in enumerate(self._candidates(i)):
                 if self.quarter_turns and k % 4 >= 2:     # a half turn of candidate k - 2: its runs mirrored
                     dy, a, L = raw[k - 2]
                     raw.append((fp.shape[0] - 1 - dy, fp.shape[1] - a - L, L))
@@ -431,16 +474,31 @@ class ShapePacker:
             self._dilated[key] = _dilate(fp, g)
         return self._dilated[key]
 
-    def _candidates(self, i, density):
-        """(footprint, angle, offset) of chart i at every rotation tried: each base angle is rasterised
-        once, its quarter turns are the footprint turned on the texel grid (exact: a quarter turn about
-        a grid point maps texels onto texels), so ``texels = density * R(angle) @ uv + offset``."""
-        for theta in self.angles[i]:
-            c, s = np.cos(theta), np.sin(theta)
-            q = density * (self.uvs[i] @ np.array([[c, s], [-s, c]]))
-            shift = 2 * _EPS - q.min(axis=0)
-            fp = footprint(q + shift, self.faces[i], self.bedges[i], self.flipped[i])
-            t = shift
+    def _base_footprints(self, density):
+        """{chart: [(footprint, angle, offset) per base angle]} at ``density``, such that
+        ``texels = density * R(angle) @ uv + offset`` on the footprint's grid."""
+        items, qs, shifts = [], [], []
+        for i in range(len(self.uvs)):            # one iteration per chart and base angle
+            for theta in self.angles[i]:
+                c, s = np.cos(theta), np.sin(theta)
+                q = density * (self.uvs[i] @ np.array([[c, s], [-s, c]]))
+                shift = 2 * _EPS - q.min(axis=0)
+                items.append((i, theta))
+                qs.append(q + shift)
+                shifts.append(shift)
+        fps = footprints(qs, [self.faces[i] for i, _ in items], [self.bedges[i] for i, _ in items],
+                         [self.flipped[i] for i, _ in items])
+        base = {}
+        for (i, theta), fp, t in zip(items, fps, shifts):
+            base.setdefault(i, []).append((fp, theta, t))
+        return base
+
+    def _candidates(self, i):
+        """(footprint, angle, offset) of chart i at every rotation tried at the cached density: each base
+        angle's footprint, then its quarter turns as the footprint turned on the texel grid (exact: a
+        quarter turn about a grid point maps texels onto texels), so ``texels = density * R(angle) @ uv
+        + offset``."""
+        for fp, theta, t in self._base[i]:
             for k in range(4 if self.quarter_turns else 1):
                 yield fp, theta + k * np.pi / 2, t
                 # a quarter turn counter-clockwise: (x, y) -> (h - y, x) keeps texels on texels
