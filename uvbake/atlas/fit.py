@@ -65,7 +65,7 @@ def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
 
 
 def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, coarse_px: int = 256,
-              rel_tol: float = 4e-3, fine_packs: int = 2, guess: float | None = None,
+              rel_tol: float = 4e-3, coarse_tol: float | None = None, fine_packs: int = 2, guess: float | None = None,
               beat_guess: bool = False) -> ShapePacking | None:
     """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
 
@@ -84,7 +84,10 @@ def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, c
     c = _coarse_factor(width, height, coarse_px)
     top = np.sqrt(width * height / area) if area > 0 else 1.0
     cw, ch, cg = width // c, height // c, -(-g // c)
-    coarse_tol = rel_tol if c == 1 or fine_packs == 0 else 2.5 * rel_tol      # the fine trials refine it
+    if c == 1 or fine_packs == 0:
+        coarse_tol = rel_tol
+    elif coarse_tol is None:
+        coarse_tol = 2.5 * rel_tol                                              # the fine trials refine it
     start = 0.75 * top if guess is None else min(guess, top)
     lo, p, hi = None, None, top / c
     if beat_guess and guess is not None:
