@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import uvbake
-from uvbake.mesh.charts import check_chart, split_charts
+from uvbake.mesh.charts import Chart, certified_disks, check_chart, split_charts
 from uvbake.mesh.topology import nonmanifold_vertices, topology
 
 from meshgen import bumpy_disk, grid, torus
@@ -116,3 +116,48 @@ def test_parameterize_refuses_several_components():
     F2 = np.vstack([F, F + len(V)])
     with pytest.raises(uvbake.ChartError, match="2 connected components"):
         uvbake.parameterize(V2, F2)
+
+
+def _chart_cases():
+    """(V, F, check_chart accepts it) for good and bad charts of every kind check_chart names."""
+    V, F = bumpy_disk(6)
+    cases = [(V, F, True), (V * 1e-200, F, True), (V * 1e250, F, True)]
+    keep = ~np.isin(F, [10, 20]).any(axis=1)
+    holed = split_charts(V, F[keep])[0]
+    cases.append((holed.V, holed.F, True))
+    cases.append((*octahedron(), False))                              # closed
+    Vt, Ft = torus()
+    cases.append((Vt, Ft[1:], False))                                  # a handle
+    Vd = V.copy()
+    Vd[F[5, 2]] = 0.5 * (Vd[F[5, 0]] + Vd[F[5, 1]])
+    cases.append((Vd, F, False))                                       # a zero-area triangle
+    cases.append((np.vstack([V, [[9, 9, 9]]]), F, False))              # an unreferenced vertex
+    Fo = F.copy()
+    Fo[7] = Fo[7, ::-1]
+    cases.append((V, Fo, False))                                       # a flipped neighbour
+    inner = F[10]
+    cases.append((np.vstack([V, [[0, 0, 5.0]]]), np.vstack([F, [[inner[0], inner[1], len(V)]]]), False))   # a fin
+    st, Fg = grid(3, 3)
+    Vg = np.column_stack([st, np.zeros(len(st))])
+    tri = np.concatenate([Fg[[0, 4]], Fg[[3, 7]]])
+    cases.append((Vg[np.unique(tri)], np.searchsorted(np.unique(tri), tri), False))   # a bowtie
+    cases.append((np.vstack([V, V + [5, 0, 0]]), np.vstack([F, F + len(V)]), False))  # two components
+    return cases
+
+
+def test_charts_checked_together_are_certified_only_where_check_chart_accepts():
+    """certified_disks decides all charts at once; it must never certify a chart check_chart rejects,
+    and it must certify the good ones (the fast path is the point), whatever their neighbours in the
+    batch or their scale."""
+    cases = _chart_cases()
+    for V, F, good in cases:
+        if good:
+            check_chart(V, F)
+        else:
+            with pytest.raises((uvbake.ChartError, uvbake.InputError)):
+                check_chart(V, F)
+    charts = [Chart(np.asarray(V, float), np.asarray(F, np.int64), np.arange(len(V)), np.arange(len(F)))
+              for V, F, _ in cases]
+    for order in (np.arange(len(cases)), np.arange(len(cases))[::-1]):
+        sure = certified_disks([charts[i] for i in order])
+        np.testing.assert_array_equal(sure, [cases[i][2] for i in order])

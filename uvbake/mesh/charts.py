@@ -101,6 +101,70 @@ def check_chart(V: ArrayLike, F: ArrayLike, *, name: str = "chart 0") -> Topolog
     return topo
 
 
+def certified_disks(charts: list[Chart]) -> np.ndarray:
+    """(k,) bool: which charts :func:`check_chart` certainly accepts, decided for all charts at once.
+
+    The same tests on the charts laid end to end (no edge joins two charts, so every count splits by
+    chart): a kit of hundreds of small parts paid check_chart's two dozen numpy calls per part. False
+    means "ask check_chart" (it raises, or accepts a chart this test left in doubt: the degenerate-
+    triangle threshold is taken a hair higher here, as its per-chart mean edge is summed differently).
+    """
+    k = len(charts)
+    if k == 0:
+        return np.zeros(0, bool)
+    nv = np.array([len(c.V) for c in charts], np.int64)       # one per chart
+    nf = np.array([len(c.F) for c in charts], np.int64)
+    ok = (nv > 0) & (nf > 0)
+    if not ok.all():
+        return ok & False
+    voff = np.cumsum(nv) - nv
+    cv, cf = np.repeat(np.arange(k), nv), np.repeat(np.arange(k), nf)
+    V = np.concatenate([np.asarray(c.V, dtype=np.float64) for c in charts])
+    F = np.concatenate([np.asarray(c.F, dtype=np.int64) for c in charts])
+    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
+        return ok & False
+    local = F
+    ok &= np.bincount(cf, weights=((local < 0) | (local >= nv[cf][:, None])).any(axis=1), minlength=k) == 0
+    if not ok.all():                                  # out-of-range indices: check_chart names them
+        return ok & False
+    F = local + voff[cf][:, None]
+    n = len(V)
+    absmax = np.maximum.reduceat(np.abs(V).max(axis=1), voff)
+    ok &= np.isfinite(absmax)
+    e_exp = np.where(np.isfinite(absmax) & (absmax > 0), np.frexp(np.where(np.isfinite(absmax), absmax, 1.0))[1], 0)
+    Vs = np.ldexp(np.where(np.isfinite(V), V, 0.0), -e_exp[cv][:, None])      # check_chart's exact scaling
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    X = Vs[F]
+    e = np.linalg.norm(X[:, [1, 2, 0]] - X, axis=2)
+    dbl = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    scale = np.maximum(np.bincount(cf, weights=e.sum(axis=1), minlength=k) / (3 * nf) * (1 + 1e-9),
+                       np.finfo(float).tiny)
+    degenerate = rep | (dbl <= 1e-12 * np.maximum(e.max(axis=1), scale[cf]) ** 2)
+    ok &= np.bincount(cf, weights=degenerate, minlength=k) == 0
+    ok &= np.bincount(cv, weights=np.bincount(F.ravel(), minlength=n) == 0, minlength=k) == 0   # unreferenced
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    und, cnt = np.unique(np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1]), return_counts=True)
+    ok &= np.bincount(cv[und // n], weights=cnt > 2, minlength=k) == 0       # non-manifold edges
+    dk, dcnt = np.unique(he[:, 0] * n + he[:, 1], return_counts=True)
+    ok &= np.bincount(cv[dk // n], weights=dcnt > 1, minlength=k) == 0       # opposite orientation
+    bow = nonmanifold_vertices(F, n)
+    ok[cv[bow]] = False
+    # topology per chart: one component, at least one boundary loop, genus 0 (as topology() counts them)
+    _, lab = components(n, he[:, 0], he[:, 1])
+    comps = np.unique(cv.astype(np.int64) * n + lab)
+    ok &= np.bincount(comps // n, minlength=k) == 1
+    once = np.isin(np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1]), und[cnt == 1])
+    bnd = he[once]
+    loops = np.zeros(k, np.int64)
+    if len(bnd):
+        _, blab = components(n, bnd[:, 0], bnd[:, 1])
+        bv = np.unique(bnd)
+        loops = np.bincount(np.unique(cv[bv].astype(np.int64) * n + blab[bv]) // n, minlength=k)
+    chi = nv - np.bincount(cv[und // n], minlength=k) + nf
+    ok &= (loops >= 1) & (2 - chi - loops == 0)
+    return ok
+
+
 def split_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
                  check: bool = True) -> list[Chart]:
     """Split a mesh into charts: one per segment label and edge-connected component.
