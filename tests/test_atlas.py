@@ -453,6 +453,30 @@ def test_borders_kept_through_merges_equal_the_borders_rebuilt_from_scratch(monk
     assert len(seen) >= 5 and all(seen)
 
 
+def test_boundaries_found_for_all_charts_at_once_are_each_charts_own():
+    # merge_back finds every chart's boundary half-edges on the charts laid end to end; each chart's
+    # rows (local and mesh vertices) and lengths must be those of the chart alone, in the same order
+    from trimesh import creation
+
+    from uvbake.atlas import merge
+    from uvbake.atlas.charting import make_charts
+
+    rng = np.random.default_rng(3)
+    sphere = creation.icosphere(3)
+    V = np.asarray(sphere.vertices) * (1 + 0.15 * rng.standard_normal((len(sphere.vertices), 1)))
+    charts, _, _ = make_charts(V, np.asarray(sphere.faces))
+    assert len(charts) >= 3
+    together: dict = {}
+    merge._fill_boundaries(charts, together)
+    for c in charts:
+        alone: dict = {}
+        rows, length = merge._boundary_global([c], alone)
+        _, r, w = together[id(c)]
+        assert len(r) > 0
+        np.testing.assert_array_equal(r, rows[:, 1:])
+        np.testing.assert_array_equal(w, length)
+
+
 def test_the_overlap_check_sees_a_chart_shrunk_to_a_speck_beside_a_large_one():
     # charts are laid side by side for one exact check; a chart the solve shrank to 1e-13 laid beside
     # charts of unit size kept none of its shape's digits, and its folded triangles went unseen

@@ -36,12 +36,17 @@ def merge_back(st: _Charting) -> None:
     from uvbake.atlas.guarantee import area_factors, overlapping_pairs
 
     serial = list(range(len(st.done)))                 # identity of each chart (merged ones get new numbers)
-    area = [_area(c) for c in st.done]
-    least = [float(area_factors(c, uv).min()) for c, uv in zip(st.done, st.starts)]
     tried: set[tuple[int, int]] = set()
     cache: dict = {}                                   # boundary of each chart, computed once
+    _fill_boundaries(st.done, cache)
     borders = _Borders(st.done, cache)
-    order = _merge_order(borders.border if borders.exact else chart_borders(st.done, cache), area)
+    border = borders.border if borders.exact else chart_borders(st.done, cache)
+    # only charts with a neighbour are ever ranked or merged: a chart alone (a kit's part, a scan's
+    # fragment) needs neither its area nor its least factor (0 keeps the others' relative ranks)
+    near = set(border[:, 0].astype(int).tolist())
+    area = [_area(c) if k in near else 0.0 for k, c in enumerate(st.done)]
+    least: list = [None] * len(st.done)                # each chart's least area factor, when first needed
+    order = _merge_order(border, area)
     at = 0
     while True:
         at = _first_untried(order, at, serial, tried)   # the order is walked once between merges
@@ -56,6 +61,9 @@ def merge_back(st: _Charting) -> None:
         # within half the budget (in log terms), or no worse than the worse of the two: the LM moves
         # factors after the merge (camelhead at alpha 0: least share 0.19 against 0.31 with the whole budget)
         # (a chart kept over budget may be folded: its least factor is <= 0, and the budget decides)
+        for k in (i, j):
+            if least[k] is None:
+                least[k] = float(area_factors(st.done[k], st.starts[k]).min())
         floor = min(-MERGE_SHARE_OF_BUDGET * st.bound, np.log(max(min(least[i], least[j]), np.finfo(float).tiny)))
         if not (np.all(np.isfinite(logf)) and logf.min() >= max(-st.bound, floor)):
             continue
@@ -111,6 +119,29 @@ def _pair(a, b):
 def _area(chart):
     X = chart.V[chart.F]
     return 0.5 * float(np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1).sum())
+
+
+def _fill_boundaries(charts, cache):
+    """Put every chart's :func:`_boundary_global` part in ``cache``, found for all charts at once (the
+    charts laid end to end: no edge joins two of them, so each chart's boundary half-edges are the
+    same, in the same order, as found alone)."""
+    from uvbake.mesh.topology import boundary_edges
+
+    todo = [c for c in charts if id(c) not in cache]
+    if not todo:
+        return
+    nv = np.array([len(c.V) for c in todo])                  # one per chart
+    off = np.cumsum(nv) - nv
+    F = np.concatenate([c.F for c in todo]) + np.repeat(off, [len(c.F) for c in todo])[:, None]
+    b = boundary_edges(F, int(nv.sum()))
+    owner = np.searchsorted(off, b[:, 0], side="right") - 1
+    V = np.concatenate([c.V for c in todo])
+    vmap = np.concatenate([c.vertex_map for c in todo])
+    rows = np.column_stack([b - off[owner][:, None], vmap[b]])
+    length = np.linalg.norm(V[b[:, 0]] - V[b[:, 1]], axis=1)
+    cut = np.searchsorted(owner, np.arange(1, len(todo)))
+    for c, r, w in zip(todo, np.split(rows, cut), np.split(length, cut)):    # one per chart: a slice each
+        cache[id(c)] = (c, r, w)
 
 
 def _boundary_global(charts, cache=None):
