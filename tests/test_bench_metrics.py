@@ -223,3 +223,34 @@ def test_peers_measure_undoes_a_per_axis_normalised_atlas():
     assert np.isclose(rec["angle"], 1.0, rtol=1e-12) and rec["area"] < 1e-12
     assert np.isclose(rec["packing"], 80 * 40 / (width * height), rtol=1e-12)
     assert rec["charts"] == 1 and rec["seam"] == 0.0 and rec["flipped"] == 0 and rec["overlaps"] == 0
+
+
+def test_distortions_of_many_charts_at_once_are_each_charts_own():
+    """The report measures every chart in one pass (charts laid end to end, sums accumulated per
+    chart); each chart's numbers must be chart_distortion's to rounding (1e-12 relative), for charts
+    with collapsed triangles and a chart with no measurable triangle alike."""
+    from uvbake.analysis.metrics import chart_distortion, chart_distortions
+
+    rng = np.random.default_rng(5)
+    Vs, Fs, uvs = [], [], []
+    for k in range(7):
+        V, F = grid(nx=3 + k, ny=2 + k % 3, z=lambda x, y: 0.1 * k * np.sin(x) * y)
+        uv = V[:, :2] @ rotation(k) * (1 + k) + rng.normal(0, 0.05, (len(V), 2))
+        if k == 2:
+            uv[F[0, 2]] = 0.5 * (uv[F[0, 0]] + uv[F[0, 1]])          # one collapsed triangle
+        if k == 4:
+            uv[:] = 0.0                                             # every triangle collapsed (J = 0 exactly)
+        Vs.append(V)
+        Fs.append(F)
+        uvs.append(uv)
+    together = chart_distortions(Vs, Fs, uvs)
+    assert len(together) == len(Fs)
+    for V, F, uv, d in zip(Vs, Fs, uvs, together):
+        alone = chart_distortion(V, F, uv)
+        assert alone.keys() == d.keys()
+        for key, a in alone.items():
+            if np.isinf(a):
+                assert d[key] == a
+            else:
+                assert d[key] == pytest.approx(a, rel=1e-12, abs=0)
+    assert np.isinf(together[4]["angle_distortion_mean"]) and np.isfinite(together[2]["angle_distortion_mean"])

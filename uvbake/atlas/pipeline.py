@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.analysis.metrics import chart_distortion, distortion_summary
+from uvbake.analysis.metrics import chart_distortions, distortion_summary
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
@@ -342,7 +342,7 @@ def _report(run, corner_uv, packed, verdict):
 
     opts, log, charts, results = run.opts, run.chart_log, run.charts, run.results
     texels = texel_summary(run.V, run.F, corner_uv)
-    per_chart = [chart_distortion(c.V, c.F, r.uv) for c, r in zip(charts, results)]   # once per chart
+    per_chart = chart_distortions([c.V for c in charts], [c.F for c in charts], [r.uv for r in results])
     shown = ("texture_size_px", "gutter_px", "bake", "auto_cut", "repair", "weld", "guarantee", "max_stretch",
              "max_charts", "texel_density", "mip_levels", "pack_splits")
     report = {
