@@ -450,3 +450,33 @@ def test_row_widening_is_scipys_maximum_filter():
         r = int(rng.integers(1, 12))
         a = rng.random((h, w)) < rng.uniform(0.0, 0.3)
         assert np.array_equal(_widen_rows(a, r), maximum_filter1d(a, size=2 * r + 1, axis=1, mode="constant"))
+
+
+def test_runs_of_footprints_found_together_are_each_footprints_own_runs():
+    """The packer finds the horizontal runs of every candidate footprint in one pass (footprints laid
+    end to end, padded by a free column); each footprint's runs must be its own (a brute-force scan
+    of every row), and their test order the documented one: the longest run first (the first of
+    equal ones), then by the row's spread, then by start."""
+    rng = np.random.default_rng(2)
+    fps = [rng.random((int(rng.integers(1, 9)), int(rng.integers(1, 11)))) < rng.uniform(0.2, 0.9) for _ in range(30)]
+    fps = [f for f in fps if f.any()] + [np.ones((3, 4), bool), np.eye(5, dtype=bool)[:, ::-1]]
+    together = shapepack._raw_runs_many(fps)
+    ordered = shapepack._runs_many(together)
+    for fp, (dy, a, L), (ody, oa, oL) in zip(fps, together, ordered):
+        expect = []
+        for r, row in enumerate(fp):
+            c = 0
+            while c < len(row):
+                if row[c]:
+                    e = c
+                    while e < len(row) and row[e]:
+                        e += 1
+                    expect.append((r, c, e - c))
+                    c = e
+                else:
+                    c += 1
+        assert list(zip(dy.tolist(), a.tolist(), L.tolist())) == expect
+        first = int(np.argmax(L))
+        key = [(-1.0 if k == first else (r * 0.6180339887498949) % 1.0, s) for k, (r, s, _) in enumerate(expect)]
+        want = sorted(range(len(expect)), key=lambda k: (key[k], k))
+        assert list(zip(ody.tolist(), oa.tolist(), oL.tolist())) == [expect[k] for k in want]

@@ -170,28 +170,55 @@ def _footprints_group(qs, Fs, bedges, flipped, h, w):
 
 def _raw_runs(fp):
     """Horizontal runs of a footprint: rows ``dy``, starts ``a`` and lengths ``L``, row-major order."""
-    h, w = fp.shape
-    pad = np.zeros((h, w + 2), bool)
-    pad[:, 1:-1] = fp
-    f = pad.ravel()
-    # every padded row starts and ends free, so the changes along the flat rows alternate: a run's start,
-    # then its end (one 1-D pass: 10x faster than 2-D np.nonzero of a row difference)
-    ch = np.flatnonzero(f[1:] != f[:-1])
+    return _raw_runs_many([fp])[0]
+
+
+def _raw_runs_many(fps):
+    """_raw_runs of several footprints in one pass: each padded with a free column either side and all
+    laid end to end in one flat array. Every padded row starts and ends free, so the changes along
+    the flat array alternate: a run's start, then its end (one 1-D pass: 10x faster than 2-D
+    np.nonzero of a row difference)."""
+    h = np.array([f.shape[0] for f in fps], np.int64)              # one per footprint
+    w = np.array([f.shape[1] for f in fps], np.int64) + 2
+    size = h * w
+    off = np.cumsum(size) - size
+    flat = np.zeros(int(size.sum()), bool)
+    for f, o, hi, wi in zip(fps, off, h, w):                       # one copy per footprint
+        flat[o:o + hi * wi].reshape(hi, wi)[:, 1:-1] = f
+    ch = np.flatnonzero(flat[1:] != flat[:-1])
     s, e = ch[0::2], ch[1::2]
-    sr, sc = np.divmod(s, w + 2)
-    return sr, sc, e - s
+    owner = np.searchsorted(off, s, side="right") - 1
+    sr, sc = np.divmod(s - off[owner], w[owner])
+    cut = np.searchsorted(owner, np.arange(1, len(fps)))
+    return list(zip(np.split(sr, cut), np.split(sc, cut), np.split(e - s, cut)))
 
 
 def _runs(fp, raw=None):
     """Runs of a footprint (``raw``: _raw_runs(fp) when known) in the order the search tests them: the
     longest run first, then runs spread over the footprint's rows (neighbouring rows agree, spread ones
     reject more candidates sooner; a fixed order, no randomness)."""
-    dy, a, L = _raw_runs(fp) if raw is None else raw
+    return _runs_many([_raw_runs(fp) if raw is None else raw])[0]
+
+
+def _runs_many(raws):
+    """_runs of several footprints' raw runs, ordered in one pass (each footprint's runs stay its own:
+    the sort's first key is the footprint)."""
+    n = np.array([len(r[0]) for r in raws], np.int64)              # one per footprint
+    owner = np.repeat(np.arange(len(raws)), n)
+    dy = np.concatenate([r[0] for r in raws])
+    a = np.concatenate([r[1] for r in raws])
+    L = np.concatenate([r[2] for r in raws])
     spread = np.mod(dy * 0.6180339887498949, 1.0)
-    spread[np.argmax(L)] = -1.0
-    order = np.lexsort((a, spread))
-    dy, a, L = dy[order], a[order], L[order].astype(_RUN)
-    return dy, a, L
+    start = np.cumsum(n) - n
+    has = n > 0
+    top = np.zeros(len(raws), L.dtype)
+    top[has] = np.maximum.reduceat(L, start[has])
+    longest = np.flatnonzero(L == top[owner])
+    _, first = np.unique(owner[longest], return_index=True)         # each footprint's first longest run
+    spread[longest[first]] = -1.0
+    order = np.lexsort((a, spread, owner))
+    cut = np.cumsum(n)[:-1]
+    return list(zip(np.split(dy[order], cut), np.split(a[order], cut), np.split(L[order].astype(_RUN), cut)))
 
 
 def gutter_element(gutter_px: int) -> np.ndarray:
@@ -424,7 +451,7 @@ class ShapePacker:
             o = np.lexsort((np.arange(len(uvs)), -key))
             if not any(np.array_equal(o, q) for q in self.orders):
                 self.orders.append(o)
-        self._density, self._cands, self._dilated, self._base = None, {}, {}, {}   # footprints at the last density
+        self._density, self._cands, self._dilated = None, {}, {}          # candidates at the last density
         self._hull_idx, self._hulls = hulls, None
 
     def hull_points(self) -> tuple[np.ndarray, np.ndarray]:
@@ -451,22 +478,42 @@ class ShapePacker:
 
     def _cached(self, i, density):
         """Chart i's candidates at ``density`` with their runs; kept while the density stays the same
-        (the width search packs one density several times). Every chart's base footprints at a new
-        density are rasterised together (footprints())."""
+        (the width search packs one density several times). Every chart's candidates at a new density
+        are made together (footprints(), _raw_runs_many(), _runs_many())."""
         if density != self._density:
-            self._density, self._cands, self._dilated = density, {}, {}
-            self._base = self._base_footprints(density)
-        if i not in self._cands:
-            out, raw = [], []
-            for k, (fp, theta, t) in enumerate(self._candidates(i)):
-                if self.quarter_turns and k % 4 >= 2:     # a half turn of candidate k - 2: its runs mirrored
-                    dy, a, L = raw[k - 2]
-                    raw.append((fp.shape[0] - 1 - dy, fp.shape[1] - a - L, L))
-                else:
-                    raw.append(_raw_runs(fp))
-                out.append((fp, theta, t, _runs(fp, raw[-1])))
-            self._cands[i] = out
+            self._density, self._dilated = density, {}
+            self._cands = self._all_candidates(density)
         return self._cands[i]
+
+    def _all_candidates(self, density):
+        """{chart: [(footprint, angle, offset, runs) per rotation tried]}: each base angle's footprint,
+        then its quarter turns as the footprint turned on the texel grid (exact: a quarter turn about a
+        grid point maps texels onto texels), so ``texels = density * R(angle) @ uv + offset``. A half
+        turn's runs are its footprint's mirrored."""
+        base = self._base_footprints(density)
+        turns = 4 if self.quarter_turns else 1
+        items = [(i, fp, theta, t) for i in range(len(self.uvs)) for fp, theta, t in base[i]]
+        fps = []
+        for _, fp, _, _ in items:                   # one per chart and base angle: views, no copies
+            r1 = np.rot90(fp, -1)
+            fps.append((fp, r1, fp[::-1, ::-1], r1[::-1, ::-1])[:turns])
+        raw = _raw_runs_many([f[k] for k in range(min(turns, 2)) for f in fps])
+        nb = len(fps)
+        raws = []
+        for j, f in enumerate(fps):                 # one per chart and base angle
+            own = [raw[k * nb + j] for k in range(min(turns, 2))]
+            for k in range(2, turns):               # a half turn of candidate k - 2: its runs mirrored
+                dy, a, L = own[k - 2]
+                own.append((f[k].shape[0] - 1 - dy, f[k].shape[1] - a - L, L))
+            raws.extend(own)
+        runs = _runs_many(raws)
+        cands: dict = {i: [] for i in range(len(self.uvs))}
+        for j, ((i, _, theta, t), f) in enumerate(zip(items, fps)):     # one per chart and base angle
+            for k in range(turns):
+                cands[i].append((f[k], theta + k * np.pi / 2, t, runs[j * turns + k]))
+                # a quarter turn counter-clockwise: (x, y) -> (h - y, x) keeps texels on texels
+                t = np.array([f[k].shape[0] - t[1], t[0]])
+        return cands
 
     def _dilate_cached(self, i, r, fp, g):
         key = (i, r, g)
@@ -492,19 +539,6 @@ class ShapePacker:
         for (i, theta), fp, t in zip(items, fps, shifts):
             base.setdefault(i, []).append((fp, theta, t))
         return base
-
-    def _candidates(self, i):
-        """(footprint, angle, offset) of chart i at every rotation tried at the cached density: each base
-        angle's footprint, then its quarter turns as the footprint turned on the texel grid (exact: a
-        quarter turn about a grid point maps texels onto texels), so ``texels = density * R(angle) @ uv
-        + offset``."""
-        for fp, theta, t in self._base[i]:
-            for k in range(4 if self.quarter_turns else 1):
-                yield fp, theta + k * np.pi / 2, t
-                # a quarter turn counter-clockwise: (x, y) -> (h - y, x) keeps texels on texels
-                h = fp.shape[0]
-                fp = np.ascontiguousarray(np.rot90(fp, -1))
-                t = np.array([h - t[1], t[0]])
 
     def pack(self, density: float, width: int, height: int | None, gutter_px: int, *,
              give_up_above: int | None = None, order: np.ndarray | None = None) -> ShapePacking | None:
