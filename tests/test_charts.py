@@ -125,9 +125,9 @@ def _chart_cases():
     keep = ~np.isin(F, [10, 20]).any(axis=1)
     holed = split_charts(V, F[keep])[0]
     cases.append((holed.V, holed.F, True))
-    cases.append((*octahedron(), False))                              # closed
+    cases.append((*octahedron(), "cut"))                              # closed
     Vt, Ft = torus()
-    cases.append((Vt, Ft[1:], False))                                  # a handle
+    cases.append((Vt, Ft[1:], "cut"))                                  # a handle
     Vd = V.copy()
     Vd[F[5, 2]] = 0.5 * (Vd[F[5, 0]] + Vd[F[5, 1]])
     cases.append((Vd, F, False))                                       # a zero-area triangle
@@ -148,16 +148,20 @@ def _chart_cases():
 def test_charts_checked_together_are_certified_only_where_check_chart_accepts():
     """certified_disks decides all charts at once; it must never certify a chart check_chart rejects,
     and it must certify the good ones (the fast path is the point), whatever their neighbours in the
-    batch or their scale."""
+    batch or their scale; the pieces it calls closed are exactly those check_chart rejects only for
+    being closed or having handles."""
     cases = _chart_cases()
     for V, F, good in cases:
-        if good:
+        if good is True:
             check_chart(V, F)
         else:
-            with pytest.raises((uvbake.ChartError, uvbake.InputError)):
+            with pytest.raises((uvbake.ChartError, uvbake.InputError), match="closed|handle" if good == "cut" else None):
                 check_chart(V, F)
     charts = [Chart(np.asarray(V, float), np.asarray(F, np.int64), np.arange(len(V)), np.arange(len(F)))
               for V, F, _ in cases]
     for order in (np.arange(len(cases)), np.arange(len(cases))[::-1]):
-        sure = certified_disks([charts[i] for i in order])
-        np.testing.assert_array_equal(sure, [cases[i][2] for i in order])
+        sure, cut = certified_disks([charts[i] for i in order], closed=True)
+        np.testing.assert_array_equal(sure, [cases[i][2] is True for i in order])
+        # closed or with handles, and nothing else wrong: what the charting cuts without asking check_chart
+        np.testing.assert_array_equal(cut, [cases[i][2] == "cut" for i in order])
+        np.testing.assert_array_equal(certified_disks([charts[i] for i in order]), sure)

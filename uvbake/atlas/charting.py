@@ -77,27 +77,32 @@ def disk_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None, *,
         creased = [p for c in pieces for p in _crease_parts(c)]
         # the creases are a preference, the chart budget a promise: no crease split past max_charts
         pieces = creased if max_charts is None or len(creased) <= max_charts else pieces
-    certified = certified_disks(pieces)
-    for c, sure in zip(pieces, certified):           # one iteration per piece; the checks ran on all at once
-        if sure:
+    certified, shut = certified_disks(pieces, closed=True)
+    for c, sure, to_cut in zip(pieces, certified, shut):   # one iteration per piece; the checks ran on all at once
+        if sure or not (to_cut and auto_cut) and _is_disk(c, auto_cut):
             out.append(c)
             continue
-        try:
-            check_chart(c.V, c.F, name=c.name)
-            out.append(c)
-            continue
-        except ChartError as exc:
-            closed = "closed" in str(exc) or "handle" in str(exc)
-            if not closed:
-                raise
-            if not auto_cut:
-                raise ChartError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
         # check_chart found it manifold; every label of cut_to_disks is a disk with holes (its contract)
         sub = cut_to_disks(c.V, c.F, manifold=True)
         parts = sub_charts(c, sub)
         cuts.append(dict(chart=c.name, parts=len(parts), seam_length=seam_length(c.V, c.F, sub)))
         out.extend(parts)
     return out, cuts
+
+
+def _is_disk(c, auto_cut):
+    """check_chart's verdict on a piece: True for a disk with holes, False for a manifold piece that is
+    closed or has handles (to be cut: only with ``auto_cut``, else a ChartError saying so); any other
+    problem raises check_chart's ChartError."""
+    try:
+        check_chart(c.V, c.F, name=c.name)
+        return True
+    except ChartError as exc:
+        if not ("closed" in str(exc) or "handle" in str(exc)):
+            raise
+        if not auto_cut:
+            raise ChartError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
+    return False
 
 
 #: Edges whose triangles' normals are at least this far apart split a piece into charts before anything

@@ -101,8 +101,10 @@ def check_chart(V: ArrayLike, F: ArrayLike, *, name: str = "chart 0") -> Topolog
     return topo
 
 
-def certified_disks(charts: list[Chart]) -> np.ndarray:
-    """(k,) bool: which charts :func:`check_chart` certainly accepts, decided for all charts at once.
+def certified_disks(charts: list[Chart], *, closed: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """(k,) bool: which charts :func:`check_chart` certainly accepts, decided for all charts at once;
+    with ``closed``, also which it certainly rejects only as closed or with handles (a manifold piece
+    in one component: what the charting cuts into disks).
 
     The same tests on the charts laid end to end (no edge joins two charts, so every count splits by
     chart): a kit of hundreds of small parts paid check_chart's two dozen numpy calls per part. False
@@ -111,22 +113,28 @@ def certified_disks(charts: list[Chart]) -> np.ndarray:
     """
     k = len(charts)
     if k == 0:
-        return np.zeros(0, bool)
+        return (np.zeros(0, bool), np.zeros(0, bool)) if closed else np.zeros(0, bool)
+    ok, shut = _disk_tests(charts, k)
+    return (ok, shut) if closed else ok
+
+
+def _disk_tests(charts, k):
+    """certified_disks' two masks: (a disk, manifold in one piece but closed or with handles)."""
     nv = np.array([len(c.V) for c in charts], np.int64)       # one per chart
     nf = np.array([len(c.F) for c in charts], np.int64)
     ok = (nv > 0) & (nf > 0)
     if not ok.all():
-        return ok & False
+        return ok & False, ok & False
     voff = np.cumsum(nv) - nv
     cv, cf = np.repeat(np.arange(k), nv), np.repeat(np.arange(k), nf)
     V = np.concatenate([np.asarray(c.V, dtype=np.float64) for c in charts])
     F = np.concatenate([np.asarray(c.F, dtype=np.int64) for c in charts])
     if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
-        return ok & False
+        return ok & False, ok & False
     local = F
     ok &= np.bincount(cf, weights=((local < 0) | (local >= nv[cf][:, None])).any(axis=1), minlength=k) == 0
     if not ok.all():                                  # out-of-range indices: check_chart names them
-        return ok & False
+        return ok & False, ok & False
     F = local + voff[cf][:, None]
     n = len(V)
     absmax = np.maximum.reduceat(np.abs(V).max(axis=1), voff)
@@ -161,8 +169,8 @@ def certified_disks(charts: list[Chart]) -> np.ndarray:
         bv = np.unique(bnd)
         loops = np.bincount(np.unique(cv[bv].astype(np.int64) * n + blab[bv]) // n, minlength=k)
     chi = nv - np.bincount(cv[und // n], minlength=k) + nf
-    ok &= (loops >= 1) & (2 - chi - loops == 0)
-    return ok
+    disk = (loops >= 1) & (2 - chi - loops == 0)
+    return ok & disk, ok & ~disk
 
 
 def split_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
