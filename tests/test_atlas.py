@@ -556,3 +556,56 @@ def test_copies_of_a_vertex_that_meet_to_rounding_get_one_uv_and_open_cuts_keep_
     out = snap_copies(chart, res).uv
     assert np.array_equal(out[n], out[5]) and np.array_equal(out[n + 1], out[6])   # one UV, the lowest copy's
     assert np.array_equal(out[n + 2], uv[n + 2]) and np.array_equal(out[:n], uv[:n])
+
+
+def test_densities_equalised_together_are_each_charts_own():
+    # the pipeline scales every chart's map to its 3D area in one pass over all charts (frames and
+    # Jacobians of the charts laid end to end); each chart must get the scale, map and energy it gets
+    # alone, bit for bit (its own sums over its own triangles)
+    import copy
+
+    from uvbake.atlas.guarantee import equalise_densities, equalise_density
+    from uvbake.flatten.solvers.result import ParamResult
+    from uvbake.mesh.charts import Chart
+
+    rng = np.random.default_rng(11)
+    charts, results = [], []
+    for k in range(5):
+        V, F = plane(4 + k, 3 + k, jitter=0.1)
+        V = V.copy()
+        V[:, 2] = 0.2 * np.sin(V[:, 0] * (k + 1))
+        uv = (V[:, :2] * (0.5 + k)) + rng.normal(0, 0.02, (len(V), 2))
+        charts.append(Chart(V, F, np.arange(len(V)), np.arange(len(F))))
+        results.append(ParamResult(uv=uv, energy=0.0, grad_norm=0.0, iterations=0, converged=True, n_flipped=0,
+                                   history=np.zeros(1), time_s=0.0, alpha=0.3 + 0.1 * k))
+    alone = [equalise_density(c, copy.deepcopy(r)) for c, r in zip(charts, results)]
+    together = equalise_densities(charts, [copy.deepcopy(r) for r in results])
+    for a, b in zip(alone, together):
+        assert a.extra["density_scale"] != 1.0
+        assert a.extra["density_scale"] == b.extra["density_scale"] and a.energy == b.energy
+        np.testing.assert_array_equal(a.uv, b.uv)
+
+
+def test_least_factors_of_many_charts_at_once_are_each_charts_own():
+    # the guarantee skips the starvation check of charts whose least area factor, found for all charts
+    # in one pass, is clearly within the budget: that pass must give each chart's least factor
+    from uvbake.atlas.guarantee import least_factors
+    from uvbake.mesh.charts import Chart
+
+    rng = np.random.default_rng(4)
+    charts, uvs = [], []
+    for k in range(6):
+        V, F = plane(4 + k, 3, jitter=0.15)
+        uv = V[:, :2] * (1 + k) + rng.normal(0, 0.05, (len(V), 2))
+        if k == 1:
+            uv[:, 0] *= -1                                  # mirrored as a whole: factors stay positive
+        if k == 2:
+            uv[F[3, 0]] = uv[F[3, 1]] + 1.5 * (uv[F[3, 2]] - uv[F[3, 1]])   # one triangle flipped
+        if k == 5:
+            uv[:] = 0.0                                     # no area: left to the exact check
+        charts.append(Chart(V, F, np.arange(len(V)), np.arange(len(F))))
+        uvs.append(uv)
+    got = least_factors(charts, uvs)
+    for c, uv, g in zip(charts[:5], uvs[:5], got[:5]):
+        assert g == pytest.approx(area_factors(c, uv).min(), rel=1e-12, abs=1e-15)
+    assert got[2] < 0 < got[1] and got[5] == -np.inf

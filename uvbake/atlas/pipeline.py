@@ -303,15 +303,15 @@ def _stage_solve(run):
     opts = run.opts
     t = time.perf_counter()
     if opts["guarantee"]:
-        from uvbake.atlas.guarantee import equalise_density, snap_copies, solve_valid
+        from uvbake.atlas.guarantee import equalise_densities, snap_copies, solve_valid
 
         # the guarantee's solve fills holes with light fans (uvbake.flatten.holes): a hole's border cannot fold
         kwargs = dict(run.solve_kwargs, options=run.solve_options.replace(fill_holes=True))
         run.charts, run.results, run.splits = solve_valid(
             run.charts, run.starts, kwargs, max_stretch=opts["max_stretch"], workers=opts["workers"],
             max_splits=opts["max_splits"], note=run.note)
-        for c, r in zip(run.charts, run.results):
-            snap_copies(c, equalise_density(c, r))
+        for c, r in zip(run.charts, equalise_densities(run.charts, run.results)):
+            snap_copies(c, r)
     else:
         run.results = parameterize_charts(run.charts, workers=opts["workers"],
                                           progress=lambda d, n, r: run.note("solve", d, n), **run.solve_kwargs)
