@@ -609,3 +609,35 @@ def test_least_factors_of_many_charts_at_once_are_each_charts_own():
     for c, uv, g in zip(charts[:5], uvs[:5], got[:5]):
         assert g == pytest.approx(area_factors(c, uv).min(), rel=1e-12, abs=1e-15)
     assert got[2] < 0 < got[1] and got[5] == -np.inf
+
+
+def test_many_small_charts_share_one_conformal_solve_and_keep_their_maps(monkeypatch):
+    # a kit of small parts: their conformal maps are solved as one block-diagonal system; each map
+    # must be its own solve's to rounding, and the charting must decide the same charts with it
+    from trimesh import creation
+
+    from uvbake.atlas import charting
+
+    rng = np.random.default_rng(8)
+    Vs, Fs, off = [], [], 0
+    for k in range(40):                               # 40 small open caps: each one chart, within the budget
+        s = creation.icosphere(1)
+        keep = s.vertices[s.faces].mean(axis=1)[:, 2] > -0.2 + 0.01 * k
+        used, F = np.unique(s.faces[keep], return_inverse=True)
+        Vs.append(s.vertices[used] * rng.uniform(0.5, 2.0) + rng.uniform(-9, 9, 3))
+        Fs.append(F.reshape(-1, 3) + off)
+        off += len(used)
+    V, F = np.concatenate(Vs), np.concatenate(Fs)
+    solves = []
+    real = charting._spd_solve_once
+    monkeypatch.setattr(charting, "_spd_solve_once", lambda A, b: solves.append(A.shape[0]) or real(A, b))
+    charts, starts, _ = make_charts(V, F)
+    together = len(solves)
+    monkeypatch.setattr(charting, "BATCH_CHARTS", 10 ** 9)
+    solves.clear()
+    charts1, starts1, _ = make_charts(V, F)
+    assert len(charts) == len(charts1) == 40
+    assert together < 5 < len(solves) == 40              # one system for the 40 caps, against 40
+    for c, c1, uv, uv1 in zip(charts, charts1, starts, starts1):
+        np.testing.assert_array_equal(c.face_index, c1.face_index)
+        np.testing.assert_allclose(uv, uv1, rtol=0, atol=1e-12 * np.abs(uv1).max())

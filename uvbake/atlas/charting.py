@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike
 
 from uvbake.atlas.opening import open_holes, slit
 from uvbake.errors import ChartError, InputError
-from uvbake.mesh.arrays import triangle_areas, unit_normals
+from uvbake.mesh.arrays import pieces, triangle_areas, unit_normals
 from uvbake.mesh.charts import Chart, certified_disks, check_chart, split_charts
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency
@@ -177,13 +177,26 @@ def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | 
     where building the solver's full energy object and nested-dissection analysis cost three
     quarters of the time. ``frames``: (Q, area) of :func:`uvbake.flatten.energy.triangle_frames`,
     when the caller has them. Returns uv (n,2)."""
-    from uvbake.flatten.starts import farthest_boundary_pair
-    from uvbake.mesh.topology import _edges
-
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
+    return lscm_many([V], [F], [_frames(V, F) if frames is None else frames])[0]
+
+
+def lscm_many(Vs: list, Fs: list, frames: list) -> list:
+    """:func:`lscm` of several charts as one block-diagonal system, one factorisation: each chart's
+    unknowns (its u's, then its v's) are a block of their own, with the entries, pins and right side
+    it has alone (a kit's hundred small parts paid a sparse assembly and a factorisation each)."""
+    from uvbake.mesh.topology import _edges
+
+    k = len(Vs)
+    nv = np.array([len(V) for V in Vs], np.int64)              # one per chart
+    nf = np.array([len(F) for F in Fs], np.int64)
+    voff = np.cumsum(nv) - nv
+    V = np.concatenate(Vs)
+    F = np.concatenate(Fs) + np.repeat(voff, nf)[:, None]
     n = len(V)
-    Q, area = _frames(V, F) if frames is None else frames
+    Q = np.concatenate([f[0] for f in frames])
+    area = np.concatenate([f[1] for f in frames])
     a, b = Q[:, :, 0], Q[:, :, 1]                        # (m,3): A = U Q, dA/du_k = (a_k, b_k)
     w = (2.0 * area)[:, None, None]
     r = np.repeat(F, 3, axis=1).ravel()
@@ -200,25 +213,49 @@ def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | 
     on = np.column_stack([alone.reshape(-1, 3), np.zeros(len(F), bool)])[:, _BLOCK_EDGE].reshape(-1)
     if (he[:, 0] == he[:, 1]).any():                     # a degenerate triangle: the plain test
         on = np.isin(np.minimum(r, c) * n + np.maximum(r, c), np.sort(bnd, axis=1) @ np.array([n, 1]))
-    rows = np.concatenate([r, r + n, r[on], c[on] + n])
-    cols = np.concatenate([c, c + n, c[on] + n, r[on]])
+    cv = np.repeat(np.arange(k), nv)
+    uid = voff[cv] + np.arange(n)                        # chart by chart: its u's, then its v's
+    vid = uid + nv[cv]
+    rows = np.concatenate([uid[r], vid[r], uid[r[on]], vid[c[on]]])
+    cols = np.concatenate([uid[c], vid[c], vid[c[on]], uid[r[on]]])
     data = np.concatenate([duu, duu, duv[on], duv[on]])
-    p, q = farthest_boundary_pair(V, F, boundary=bnd)
+    p, q = _farthest_pairs(V, np.unique(bnd), cv, k)
     x = np.zeros(2 * n)
-    x[q] = np.linalg.norm(V[q] - V[p])
+    x[uid[q]] = [np.linalg.norm(V[j] - V[i]) for i, j in zip(p, q)]     # one per chart: lscm's own norm
     # unknown k -> its index among the free ones (-1: pinned); the pinned ones move to the right side
     index = np.arange(2 * n)
-    pinned = np.array(sorted({p, q, p + n, q + n}))
+    pinned = np.unique(np.concatenate([uid[p], uid[q], vid[p], vid[q]]))
     index = index - np.searchsorted(pinned, index, side="right")
     index[pinned] = -1
     ri, ci = index[rows], index[cols]
     both = (ri >= 0) & (ci >= 0)
-    k = 2 * n - len(pinned)
-    A = sp.csc_matrix((data[both], (ri[both], ci[both])), shape=(k, k))
+    m = 2 * n - len(pinned)
+    A = sp.csc_matrix((data[both], (ri[both], ci[both])), shape=(m, m))
     right = (ri >= 0) & (ci < 0)
-    rhs = -np.bincount(ri[right], weights=data[right] * x[cols[right]], minlength=k)
+    rhs = -np.bincount(ri[right], weights=data[right] * x[cols[right]], minlength=m)
     x[index >= 0] = _spd_solve_once(A, rhs)
-    return np.stack([x[:n], x[n:]], axis=1)
+    uv = np.stack([x[uid], x[vid]], axis=1)
+    return pieces(uv, np.cumsum(nv)[:-1])
+
+
+def _farthest_pairs(V, bv, cv, k):
+    """Each chart's :func:`uvbake.flatten.starts.farthest_boundary_pair`: the boundary vertex farthest
+    from the chart's first one, then the one farthest from it (the first of equals), for all charts
+    at once (``bv``: the sorted boundary vertices, ``cv``: each vertex's chart)."""
+    bc = cv[bv]
+    start = np.searchsorted(bc, np.arange(k))
+    p = bv[_first_max(np.linalg.norm(V[bv] - V[bv[start]][bc], axis=1), bc, k)]
+    q = bv[_first_max(np.linalg.norm(V[bv] - V[p][bc], axis=1), bc, k)]
+    return p, q
+
+
+def _first_max(x, group, k):
+    """Per group (``group`` sorted, every group present): the index of its first largest ``x``."""
+    top = np.full(k, -np.inf)
+    np.maximum.at(top, group, x)
+    hit = np.flatnonzero(x == top[group])
+    _, first = np.unique(group[hit], return_index=True)
+    return hit[first]
 
 
 def _frames(V, F):
@@ -246,6 +283,13 @@ def _spd_solve_once(A, b):
     return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                      options=dict(SymmetricMode=True)).solve(b)
 
+
+#: Charts of at most BATCH_FACES triangles have their conformal maps solved together (BATCH_TRIANGLES
+#: triangles a system) when there are at least BATCH_CHARTS of them: a kit of small parts paid one sparse
+#: assembly and factorisation per part. Fewer small charts keep a solve each, as they always had.
+BATCH_FACES = 512
+BATCH_CHARTS = 32
+BATCH_TRIANGLES = 20000
 
 #: At most this many protrusion tips are slit open per conformal solve.
 MAX_TIPS = 32
@@ -277,19 +321,25 @@ def conformal_factor(V: np.ndarray, F: np.ndarray, *,
 
     Returns (uv (n,2), logf (m,)): logf = log(UV area / 3D area) - log(total UV / total 3D), -inf where
     the conformal map flips or collapses the triangle. ``frames`` as in :func:`lscm`."""
-    frames = _frames(V, F) if frames is None else frames
-    uv = lscm(V, F, frames=frames)
-    a3 = frames[1]
-    U = uv[F]
-    e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
-    a2 = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    if a2.sum() < 0:                                   # a mirrored map: orientation is the chart's
-        uv[:, 1] *= -1
-        a2 = -a2
-    mean = a2.sum() / a3.sum()
-    with np.errstate(divide="ignore", invalid="ignore"):
-        logf = np.where(a2 > 0, np.log(a2 / a3 / mean), -np.inf)
-    return uv, logf
+    return conformal_factors([V], [F], [_frames(V, F) if frames is None else frames])[0]
+
+
+def conformal_factors(Vs: list, Fs: list, frames: list) -> list:
+    """:func:`conformal_factor` of several charts, their maps solved together (:func:`lscm_many`)."""
+    out = []
+    for F, uv, (_, a3) in zip(Fs, lscm_many(Vs, Fs, frames), frames):      # one per chart: its own sums
+        U = uv[F]
+        e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
+        a2 = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        if a2.sum() < 0:                               # a mirrored map: orientation is the chart's
+            uv = uv.copy()
+            uv[:, 1] *= -1
+            a2 = -a2
+        mean = a2.sum() / a3.sum()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            logf = np.where(a2 > 0, np.log(a2 / a3 / mean), -np.inf)
+        out.append((uv, logf))
+    return out
 
 
 def _smoothed(F, n, logf, area):
@@ -416,6 +466,7 @@ class _Charting:
     over: list = dataclasses.field(default_factory=list)
     solves: int = 0
     solved_triangles: int = 0        # triangles of every conformal solve (the stage's work count)
+    solved: dict = dataclasses.field(default_factory=dict)   # id(chart) -> (chart, its conformal map), solved ahead
 
     def chart_frames(self, chart):
         """(Q, area) of the chart's triangles: intrinsic to each triangle and its corner order, which
@@ -423,10 +474,29 @@ class _Charting:
         return self.frames[0][chart.face_index], self.frames[1][chart.face_index]
 
     def conformal(self, chart, frames=None):
-        """:func:`conformal_factor` of ``chart``, counted."""
+        """:func:`conformal_factor` of ``chart`` (solved already when it was one of many small charts),
+        counted."""
         self.solves += 1
         self.solved_triangles += len(chart.F)
+        if id(chart) in self.solved:
+            return self.solved.pop(id(chart))[1]
         return conformal_factor(chart.V, chart.F, frames=self.chart_frames(chart) if frames is None else frames)
+
+    def solve_small_together(self, charts):
+        """Solve the conformal maps of ``charts`` of at most BATCH_FACES triangles together, when there
+        are at least BATCH_CHARTS of them (a kit's parts, a scan's fragments), in groups of at most
+        BATCH_TRIANGLES triangles: one factorisation per group (:func:`conformal_factors`; each map
+        equals its own solve's to rounding, about 1e-15 relative)."""
+        small = [c for c in charts if len(c.F) <= BATCH_FACES]
+        if len(small) < BATCH_CHARTS:
+            return
+        size = np.cumsum([len(c.F) for c in small])
+        group = size // BATCH_TRIANGLES
+        for g in np.unique(group):                      # one per group of charts
+            part = [c for c, k in zip(small, group) if k == g]
+            fr = [self.chart_frames(c) for c in part]
+            for c, res in zip(part, conformal_factors([c.V for c in part], [c.F for c in part], fr)):
+                self.solved[id(c)] = (c, res)           # the chart held: its id stays its own
 
     def full(self):
         return self.max_charts is not None and len(self.done) + len(self.queue) + 1 >= self.max_charts
@@ -449,6 +519,7 @@ def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
     disks, cuts = disk_charts(V, F, labels, auto_cut=auto_cut, max_charts=max_charts, creases=True)
     st = _Charting(float(np.log(max_stretch)), max_charts, MAX_SOLVES_PER_CHART * len(disks),
                    [(c, None) for c in disks], _frames(np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)))
+    st.solve_small_together(disks)
     checked, rounds = 0, 0
     while True:                                         # rounds: conformal charts, then their overlaps
         while st.queue:                                 # one iteration per conformal solve

@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from uvbake.mesh.arrays import pieces
+
 
 def rotation_2d(theta: float) -> np.ndarray:
     c, s = np.cos(theta), np.sin(theta)
@@ -78,7 +80,7 @@ def convex_hulls_2d(Ps: list) -> list:
         keep = left | right
         pts, seg = pts[keep], seg[keep]
     counts = np.bincount(hc, minlength=k)
-    return [hs - off[j] for j, hs in enumerate(np.split(hull, np.cumsum(counts)[:-1]))]
+    return [hs - off[j] for j, hs in enumerate(pieces(hull, np.cumsum(counts)[:-1]))]
 
 
 def min_area_rect(P: np.ndarray) -> tuple[float, float, float]:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from uvbake.mesh.arrays import pieces
 from uvbake.mesh.charts import Chart
 from uvbake.mesh.graph import components
 
@@ -140,7 +141,7 @@ def _fill_boundaries(charts, cache):
     rows = np.column_stack([b - off[owner][:, None], vmap[b]])
     length = np.linalg.norm(V[b[:, 0]] - V[b[:, 1]], axis=1)
     cut = np.searchsorted(owner, np.arange(1, len(todo)))
-    for c, r, w in zip(todo, np.split(rows, cut), np.split(length, cut)):    # one per chart: a slice each
+    for c, r, w in zip(todo, pieces(rows, cut), pieces(length, cut)):    # one per chart: a slice each
         cache[id(c)] = (c, r, w)
 
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uvbake.atlas.distance import boundary_halfedges
-from uvbake.mesh.arrays import signed_areas
+from uvbake.mesh.arrays import pieces, signed_areas
 
 _EPS = 1e-7          # texels: every touch test is widened by this, so rounding never drops a touched texel
 _CHUNK = 16          # candidate rows tested together
@@ -190,7 +190,7 @@ def _raw_runs_many(fps):
     owner = np.searchsorted(off, s, side="right") - 1
     sr, sc = np.divmod(s - off[owner], w[owner])
     cut = np.searchsorted(owner, np.arange(1, len(fps)))
-    return list(zip(np.split(sr, cut), np.split(sc, cut), np.split(e - s, cut)))
+    return list(zip(pieces(sr, cut), pieces(sc, cut), pieces(e - s, cut)))
 
 
 def _runs(fp, raw=None):
@@ -218,7 +218,7 @@ def _runs_many(raws):
     spread[longest[first]] = -1.0
     order = np.lexsort((a, spread, owner))
     cut = np.cumsum(n)[:-1]
-    return list(zip(np.split(dy[order], cut), np.split(a[order], cut), np.split(L[order].astype(_RUN), cut)))
+    return list(zip(pieces(dy[order], cut), pieces(a[order], cut), pieces(L[order].astype(_RUN), cut)))
 
 
 def gutter_element(gutter_px: int) -> np.ndarray:
