@@ -8,7 +8,8 @@ import pytest
 
 import uvbake
 from uvbake.analysis.metrics import texel_share, texel_summary
-from uvbake.atlas.charting import conformal_factor, make_charts
+from uvbake.atlas.charting import make_charts
+from uvbake.atlas.conformal import conformal_factor
 from uvbake.atlas.guarantee import area_factors, smallest_positive_root
 from uvbake.mesh.charts import check_chart
 
@@ -95,7 +96,8 @@ def test_a_tube_is_cut_open_between_its_loops_into_one_strip():
 
 
 def test_cut_parts_inherit_the_parent_map_only_within_the_budget():
-    from uvbake.atlas.charting import _frames, _inherited_map, sub_charts
+    from uvbake.atlas.charting import _inherited_map, sub_charts
+    from uvbake.atlas.conformal import _frames
     from uvbake.mesh.charts import Chart
 
     V, F = plane(9, 7, jitter=0.0)
@@ -260,7 +262,8 @@ def test_two_halves_of_a_disk_join_back_into_the_disk_and_a_closed_join_is_refus
 
 
 def test_merging_back_keeps_every_chart_within_the_budget_and_overlap_free():
-    from uvbake.atlas.charting import _Charting, _frames, conformal_factor, sub_charts
+    from uvbake.atlas.charting import _Charting, sub_charts
+    from uvbake.atlas.conformal import _frames
     from uvbake.atlas.guarantee import overlapping_pairs
     from uvbake.atlas.merge import merge_back
     from uvbake.mesh.charts import split_charts
@@ -302,7 +305,8 @@ def test_a_folded_chart_loses_every_starving_region_in_one_cut_and_charting_work
     the remainder, so the remainder is re-solved once per round, not once per region; the conformal
     work of the whole stage (every solve's triangles, merging included) stays a small multiple of
     the mesh (measured 8.2x; 13.1x when regions were peeled one at a time)."""
-    from uvbake.atlas.charting import _cut_by_factor, _frames, _smoothed, disk_charts
+    from uvbake.atlas.charting import _cut_by_factor, _smoothed, disk_charts
+    from uvbake.atlas.conformal import _frames
     from uvbake.io import load_mesh
 
     from conftest import shared_mesh
@@ -616,7 +620,7 @@ def test_many_small_charts_share_one_conformal_solve_and_keep_their_maps(monkeyp
     # must be its own solve's to rounding, and the charting must decide the same charts with it
     from trimesh import creation
 
-    from uvbake.atlas import charting
+    from uvbake.atlas import charting, conformal
 
     rng = np.random.default_rng(8)
     Vs, Fs, off = [], [], 0
@@ -629,8 +633,8 @@ def test_many_small_charts_share_one_conformal_solve_and_keep_their_maps(monkeyp
         off += len(used)
     V, F = np.concatenate(Vs), np.concatenate(Fs)
     solves = []
-    real = charting._spd_solve_once
-    monkeypatch.setattr(charting, "_spd_solve_once", lambda A, b: solves.append(A.shape[0]) or real(A, b))
+    real = conformal._spd_solve_once
+    monkeypatch.setattr(conformal, "_spd_solve_once", lambda A, b: solves.append(A.shape[0]) or real(A, b))
     charts, starts, _ = make_charts(V, F)
     together = len(solves)
     monkeypatch.setattr(charting, "BATCH_CHARTS", 10 ** 9)

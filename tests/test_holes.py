@@ -61,7 +61,7 @@ def test_filled_holes_keep_the_sphere_caps_hole_from_folding_over():
     """The shipped spherical cap at alpha 0.5: its conformal map solved as is folds one hole's border
     over (overlapping triangles); with the holes filled nothing overlaps, F of the chart's own triangles
     is within 1 % of the plain minimum's, and the result holds only the chart's own vertices."""
-    from uvbake.atlas.charting import conformal_factor
+    from uvbake.atlas.conformal import conformal_factor
     from uvbake.io import load_mesh
     from uvbake.validate.core import overlap_pairs
 

@@ -218,10 +218,10 @@ def test_any_finite_scale_gives_the_same_map(scale):
 
 
 def test_the_chartings_one_shot_lscm_is_the_starts_lscm():
-    # uvbake.atlas.charting.lscm assembles the conformal energy straight into the free unknowns and
+    # uvbake.atlas.conformal.lscm assembles the conformal energy straight into the free unknowns and
     # keeps the u-v coupling only on boundary edges; it must give the solver-built LSCM's map, on a
     # disk and on a cut cylinder (its cut is boundary on both sides)
-    from uvbake.atlas.charting import lscm as one_shot
+    from uvbake.atlas.conformal import lscm as one_shot
 
     for V, F in (bumpy_disk(n=8, seed=3), cut_cylinder()):
         a, b = lscm(V, F), one_shot(V, F)

@@ -9,10 +9,12 @@ crossings), never with uvbake's own min_chart_distance alone.
 import numpy as np
 import pytest
 
+from uvbake.atlas import footprint as footprint_module
 from uvbake.atlas import shapepack
 from uvbake.atlas.distance import boundary_halfedges
+from uvbake.atlas.footprint import footprint, footprints
 from uvbake.atlas.pack import pack_charts
-from uvbake.atlas.shapepack import footprint, footprints, gutter_element, mip_gutter_px
+from uvbake.atlas.shapepack import gutter_element, mip_gutter_px
 from uvbake.errors import InputError
 
 from test_pack import edges_cross, grid_chart, min_gap, signed_areas, star_chart
@@ -142,7 +144,7 @@ def test_charts_rasterised_together_get_exactly_the_texels_their_triangles_meet(
         flips.append(np.flatnonzero(sa * np.sign(sa.sum()) <= 0))
     assert sum(len(f) > 0 for f in flips) >= 2
     for cells in (1 << 22, 300):                      # one group; several (a chart alone when bigger)
-        monkeypatch.setattr(shapepack, "_BATCH_CELLS", cells)
+        monkeypatch.setattr(footprint_module, "_BATCH_CELLS", cells)
         together = footprints(qs, faces, Bs, flips)
         assert len(together) == len(qs)
         for q, F, fp in zip(qs, faces, together):

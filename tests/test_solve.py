@@ -143,7 +143,7 @@ def test_the_default_thread_pool_runs_only_for_two_large_charts_or_more(monkeypa
 # ---- small charts solved together ------------------------------------------------------------------
 
 def _small_charts_with_starts():
-    from uvbake.atlas.charting import lscm
+    from uvbake.atlas.conformal import lscm
 
     charts = [bumpy_disk(n=6, seed=s) for s in range(3)] + [cone(nu=10, nv=4), plane(nu=7, nv=6)]
     charts[1] = (charts[1][0] * 7.0, charts[1][1])                          # another unit: its own frame
@@ -180,7 +180,7 @@ def test_small_charts_solved_together_reach_each_charts_own_minimum():
 
 
 def test_a_batch_small_enough_for_the_dense_certificate_sets_each_charts_gauge_aside():
-    from uvbake.atlas.charting import lscm
+    from uvbake.atlas.conformal import lscm
     from uvbake.flatten import joint
 
     charts = [plane(nu=3, nv=3, seed=s) for s in range(3)]                    # 9 vertices each: 54 unknowns

@@ -4,7 +4,7 @@ proven, the exact all-triangle check finds no pair; what it cannot prove is left
 import numpy as np
 import pytest
 
-from uvbake.atlas.charting import conformal_factor
+from uvbake.atlas.conformal import conformal_factor
 from uvbake.validate.boundary import boundary_proves_injective, proven_injective
 from uvbake.validate.core import overlap_pairs
 

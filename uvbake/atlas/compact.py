@@ -3,7 +3,7 @@
 A packing found on a coarse raster (uvbake.atlas.fit) keeps each chart's coarse footprint: up to a
 coarse texel of slack on every side and a gutter rounded up to whole coarse texels. Here every chart is
 rasterised once at the packing's own density and sub-texel position (the footprint of the chart where
-it is, uvbake.atlas.shapepack.footprint), and then, one chart at a time in the order of their bottom
+it is, uvbake.atlas.footprint.footprint), and then, one chart at a time in the order of their bottom
 edges, the chart is taken out of the atlas and put back at the lowest free position in its own column
 band no higher than where it was, then the leftmost free position in its row no further right, until it
 stops moving. Moves are whole texels, so the footprints stay exact, and a chart's old position is
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from uvbake.atlas.footprint import _EPS, footprint
 from uvbake.atlas.shapepack import (
-    _EPS,
     _RUN,
     ShapePacker,
     ShapePacking,
@@ -25,7 +25,6 @@ from uvbake.atlas.shapepack import (
     _dilate,
     _free_runs,
     _runs,
-    footprint,
     update_runs,
 )
 

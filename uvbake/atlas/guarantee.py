@@ -389,7 +389,7 @@ def _broken_map(chart, result):
 def _own_conformal_starts(charts, indices):
     """{i: chart i's own conformal map} for the charts in ``indices`` whose conformal map has no flipped
     or collapsed triangle."""
-    from uvbake.atlas.charting import conformal_factor
+    from uvbake.atlas.conformal import conformal_factor
     from uvbake.cancel import check_cancelled
 
     out = {}
