@@ -645,3 +645,26 @@ def test_many_small_charts_share_one_conformal_solve_and_keep_their_maps(monkeyp
     for c, c1, uv, uv1 in zip(charts, charts1, starts, starts1):
         np.testing.assert_array_equal(c.face_index, c1.face_index)
         np.testing.assert_allclose(uv, uv1, rtol=0, atol=1e-12 * np.abs(uv1).max())
+
+
+def test_merges_joined_ahead_decide_what_merges_joined_in_turn_decide(monkeypatch):
+    # merge_back joins the next pairs ahead of their turn and solves their small merged charts
+    # together; every decision must be the one the pair gets in its turn (the same charts, their maps
+    # to rounding), across merges that replace charts between a pair's join and its turn
+    from trimesh import creation
+
+    from uvbake.atlas import charting, merge
+
+    box = creation.box(extents=(3.0, 2.0, 1.0)).subdivide().subdivide()   # six crease parts, merged back
+    V, F = np.asarray(box.vertices), np.asarray(box.faces)
+    together = []
+    real = charting.conformal_factors
+    monkeypatch.setattr(charting, "conformal_factors", lambda Vs, *a: together.append(len(Vs)) or real(Vs, *a))
+    charts, starts, log = make_charts(V, F)
+    assert sum("merged" in c for c in log["budget_cuts"]) >= 3 and max(together) >= 2
+    monkeypatch.setattr(merge, "MERGE_AHEAD", 1)
+    charts1, starts1, log1 = make_charts(V, F)
+    assert [sorted(c.face_index) for c in charts] == [sorted(c.face_index) for c in charts1]
+    assert [c.get("merged") for c in log["budget_cuts"]] == [c.get("merged") for c in log1["budget_cuts"]]
+    for uv, uv1 in zip(starts, starts1):
+        np.testing.assert_allclose(uv, uv1, rtol=0, atol=1e-12 * np.abs(uv1).max())

@@ -334,13 +334,13 @@ class _Charting:
             return self.solved.pop(id(chart))[1]
         return conformal_factor(chart.V, chart.F, frames=self.chart_frames(chart) if frames is None else frames)
 
-    def solve_small_together(self, charts):
+    def solve_small_together(self, charts, at_least=None):
         """Solve the conformal maps of ``charts`` of at most BATCH_FACES triangles together, when there
-        are at least BATCH_CHARTS of them (a kit's parts, a scan's fragments), in groups of at most
-        BATCH_TRIANGLES triangles: one factorisation per group (:func:`conformal_factors`; each map
-        equals its own solve's to rounding, about 1e-15 relative)."""
-        small = [c for c in charts if len(c.F) <= BATCH_FACES]
-        if len(small) < BATCH_CHARTS:
+        are at least ``at_least`` (default BATCH_CHARTS) of them (a kit's parts, a scan's fragments), in
+        groups of at most BATCH_TRIANGLES triangles: one factorisation per group
+        (:func:`conformal_factors`; each map equals its own solve's to rounding, about 1e-15 relative)."""
+        small = [c for c in charts if len(c.F) <= BATCH_FACES and id(c) not in self.solved]
+        if len(small) < (BATCH_CHARTS if at_least is None else at_least):
             return
         size = np.cumsum([len(c.F) for c in small])
         group = size // BATCH_TRIANGLES

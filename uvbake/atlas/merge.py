@@ -49,13 +49,17 @@ def merge_back(st: _Charting) -> None:
     least: list = [None] * len(st.done)                # each chart's least area factor, when first needed
     order = _merge_order(border, area)
     at = 0
+    ahead: dict = {}                                   # pair of charts (ids) -> the two and their join, made ahead
     while True:
         at = _first_untried(order, at, serial, tried)   # the order is walked once between merges
         if at == len(order[0]):
             return
         i, j = int(order[0][at]), int(order[1][at])
+        key = _pair(id(st.done[i]), id(st.done[j]))
+        if key not in ahead:
+            _join_ahead(st, order, at, serial, tried, cache, ahead)
         tried.add(_pair(serial[i], serial[j]))         # a pair is tried once, from either side
-        merged = join_charts(st.done[i], st.done[j], cache)
+        merged = ahead.pop(key)[2]
         if merged is None:
             continue
         uv, logf = st.conformal(merged)
@@ -77,6 +81,30 @@ def merge_back(st: _Charting) -> None:
         least[keep], serial[keep] = float(np.exp(logf.min())), len(serial) + len(tried)
         del st.done[drop], st.starts[drop], area[drop], serial[drop], least[drop]
         order, at = _merge_order(borders.merged(keep, drop), area), 0
+
+
+#: Pairs joined ahead of their turn: their small merged charts' conformal maps are solved together.
+MERGE_AHEAD = 16
+
+
+def _join_ahead(st, order, at, serial, tried, cache, ahead):
+    """Join the next MERGE_AHEAD untried pairs of ``order`` from ``at`` into ``ahead`` (the pair's chart
+    ids -> (chart, chart, merged chart or None)) and solve the small merged charts' conformal maps
+    together (a kit or a spiky surface tries dozens of merges of a few dozen triangles each). A merge
+    replaces its charts by a new one, and an entry holds its two charts (their ids stay theirs), so a
+    pair made ahead is exactly what its turn would make."""
+    i, j = order
+    made = []
+    for k in range(at, len(i)):                        # one per pair, at most MERGE_AHEAD made
+        a, b = st.done[int(i[k])], st.done[int(j[k])]
+        key = _pair(id(a), id(b))
+        if _pair(serial[int(i[k])], serial[int(j[k])]) in tried or key in ahead:
+            continue
+        ahead[key] = (a, b, join_charts(a, b, cache))
+        made.append(ahead[key][2])
+        if len(made) == MERGE_AHEAD:
+            break
+    st.solve_small_together([m for m in made if m is not None], at_least=2)
 
 
 def _merge_order(border: np.ndarray, area: list) -> tuple[np.ndarray, np.ndarray]:
