@@ -668,3 +668,24 @@ def test_merges_joined_ahead_decide_what_merges_joined_in_turn_decide(monkeypatc
     assert [c.get("merged") for c in log["budget_cuts"]] == [c.get("merged") for c in log1["budget_cuts"]]
     for uv, uv1 in zip(starts, starts1):
         np.testing.assert_allclose(uv, uv1, rtol=0, atol=1e-12 * np.abs(uv1).max())
+
+
+def test_a_joins_disk_check_is_topologys_verdict():
+    # join_charts asks only for the edges and boundary loops of the joined chart (one piece, every
+    # vertex used); its verdict must be topology()'s "genus 0 with a boundary" on every kind of piece
+    from uvbake.atlas.merge import _disk_with_holes
+    from uvbake.mesh.charts import split_charts
+    from uvbake.mesh.topology import topology
+
+    from meshgen import torus
+
+    V, F = plane(6, 5)
+    annulus = split_charts(V, F[~np.isin(F, [14]).any(axis=1)])[0]
+    Vt, Ft = torus()
+    sphere_F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    cases = [(F, len(V), True), (annulus.F, len(annulus.V), True), (sphere_F, 6, False),
+             (Ft, len(Vt), False), (Ft[1:], len(Vt), False)]
+    for Fc, n, disk in cases:
+        topo = topology(Fc, n)
+        assert (topo.genus == 0 and topo.n_boundary_loops > 0) == disk
+        assert _disk_with_holes(np.asarray(Fc), n) == disk

@@ -297,8 +297,6 @@ class _Borders:
 def join_charts(a: Chart, b: Chart, cache: dict | None = None) -> Chart | None:
     """One chart of ``a`` and ``b`` (same label) joined along the mesh edges they share, or None when
     the result is not a disk with holes (it would close a loop into a handle, or meet at a bowtie)."""
-    from uvbake.mesh.topology import topology
-
     h = _boundary_global([a, b], cache)[0]
     n = int(h[:, 3:].max()) + 1
     ha, hb = h[h[:, 0] == 0], h[h[:, 0] == 1]
@@ -320,9 +318,24 @@ def join_charts(a: Chart, b: Chart, cache: dict | None = None) -> Chart | None:
     # two disks with holes welded along whole edges, one vertex of each per weld: manifold, one fan
     # per vertex, one piece; it is a disk with holes unless the weld closed it or made a handle
     he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    if len(np.unique(he[:, 0] * len(V) + he[:, 1])) < len(he):   # an edge used twice the same way
+    directed = np.sort(he[:, 0] * len(V) + he[:, 1])
+    if (directed[1:] == directed[:-1]).any():          # an edge used twice the same way
         return None
-    topo = topology(F, len(V))
-    if topo.genus != 0 or topo.n_boundary_loops == 0:
+    if not _disk_with_holes(F, len(V)):
         return None
     return Chart(V, F.astype(np.int64), vmap, np.concatenate([a.face_index, b.face_index]), a.label, a.name)
+
+
+def _disk_with_holes(F, n):
+    """topology(F, n)'s verdict ``genus == 0 and n_boundary_loops > 0`` for a join: one piece (two
+    connected charts sharing an edge) whose n vertices are all used, so only the edges and the
+    boundary loops are counted (the whole mesh's components were most of topology's cost)."""
+    from uvbake.mesh.topology import _edges
+
+    _, uniq, bnd = _edges(F, n)
+    if not len(bnd):
+        return False
+    _, blab = components(n, bnd[:, 0], bnd[:, 1])
+    loops = len(np.unique(blab[np.unique(bnd)]))
+    chi = n - len(uniq) + len(F)
+    return (2 - chi - loops) // 2 == 0
