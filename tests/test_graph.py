@@ -1,4 +1,5 @@
-"""uvbake.mesh.graph.components: scipy's undirected connected components, same labels."""
+"""uvbake.mesh.graph.components: scipy's undirected connected components, same labels; and the mesh
+code's np.unique and np.split stand-ins (uvbake.mesh.arrays)."""
 
 import numpy as np
 import pytest
@@ -51,3 +52,22 @@ def test_components_hand_graphs_that_need_more_rounds_to_scipy_with_the_same_lab
     assert count == 1 and np.array_equal(labels, _scipy(60, i, j)[1])
     count, labels = components(7, [0, 0, 0], [3, 5, 6])                    # a star and three lone nodes
     assert count == 4 and labels.tolist() == [0, 1, 2, 0, 3, 0, 0]
+
+
+def test_unique_sorted_and_pieces_are_numpys():
+    """The mesh code's np.unique (one sort) and np.split (slices) stand-ins give numpy's arrays exactly,
+    for empty, one-element, 2-D, boolean and unsigned inputs; floats (NaNs) are left to np.unique."""
+    from uvbake.mesh.arrays import pieces, unique_sorted
+
+    rng = np.random.default_rng(1)
+    cases = [np.zeros(0, np.int64), np.array([7]), rng.integers(-5, 5, (30, 3)), rng.integers(0, 10**9, 5000),
+             rng.random(50) < 0.5, rng.integers(0, 300, 1000).astype(np.uint16),
+             np.array([1.0, np.nan, 0.5, np.nan, 1.0])]
+    for a in cases:
+        got, want = unique_sorted(a), np.unique(a)
+        assert got.dtype == want.dtype
+        np.testing.assert_array_equal(got, want)
+    a = rng.integers(0, 9, 100)
+    for cut in ([], [0], [100], [3, 3, 50, 99], np.array([10, 20])):
+        got, want = pieces(a, cut), np.split(a, cut)
+        assert len(got) == len(want) and all(np.array_equal(g, w) for g, w in zip(got, want))

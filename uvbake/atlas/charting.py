@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike
 from uvbake.atlas.conformal import _frames, conformal_factor, conformal_factors
 from uvbake.atlas.opening import open_holes, slit
 from uvbake.errors import ChartError, InputError
-from uvbake.mesh.arrays import triangle_areas, unit_normals
+from uvbake.mesh.arrays import triangle_areas, unique_sorted, unit_normals
 from uvbake.mesh.charts import Chart, certified_disks, check_chart, split_charts
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency
@@ -126,7 +126,7 @@ def _crease_parts(chart: Chart) -> list[Chart]:
     if nc == 1:
         return [chart]
     lab = _absorb_slivers(F, n, comp, triangle_areas(chart.V, F), SLIVER_SHARE, adj)
-    if len(np.unique(lab)) < 2:
+    if len(unique_sorted(lab)) < 2:
         return [chart]
     return sub_charts(chart, lab, adj)
 
@@ -295,7 +295,7 @@ def _cut_by_factor(chart, logf, bound, *, area=None, adjacency=None):
     else:
         side = _level_cut(field, fi, fj, w, area, ref + 0.25 * bound, ref + bound)
     lab = _absorb_slivers(F, n, side, area, SLIVER_SHARE, adjacency)
-    if len(np.unique(lab)) < 2:
+    if len(unique_sorted(lab)) < 2:
         bad = np.flatnonzero(~np.isfinite(logf) | (logf < ref - bound))
         lab = split_where(V, F, bad) if m >= 2 else np.zeros(m, np.int64)
     return lab
@@ -344,7 +344,7 @@ class _Charting:
             return
         size = np.cumsum([len(c.F) for c in small])
         group = size // BATCH_TRIANGLES
-        for g in np.unique(group):                      # one per group of charts
+        for g in unique_sorted(group):                      # one per group of charts
             part = [c for c, k in zip(small, group) if k == g]
             fr = [self.chart_frames(c) for c in part]
             for c, res in zip(part, conformal_factors([c.V for c in part], [c.F for c in part], fr)):

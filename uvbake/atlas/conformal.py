@@ -9,7 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
-from uvbake.mesh.arrays import pieces
+from uvbake.mesh.arrays import pieces, unique_sorted
 
 #: The half-edge (0: 0->1, 1: 1->2, 2: 2->0) each entry of a triangle's row-major 3x3 block lies on;
 #: 3 (never a boundary edge) for the diagonal.
@@ -67,12 +67,12 @@ def lscm_many(Vs: list, Fs: list, frames: list) -> list:
     rows = np.concatenate([uid[r], vid[r], uid[r[on]], vid[c[on]]])
     cols = np.concatenate([uid[c], vid[c], vid[c[on]], uid[r[on]]])
     data = np.concatenate([duu, duu, duv[on], duv[on]])
-    p, q = _farthest_pairs(V, np.unique(bnd), cv, k)
+    p, q = _farthest_pairs(V, unique_sorted(bnd), cv, k)
     x = np.zeros(2 * n)
     x[uid[q]] = [np.linalg.norm(V[j] - V[i]) for i, j in zip(p, q)]     # one per chart: lscm's own norm
     # unknown k -> its index among the free ones (-1: pinned); the pinned ones move to the right side
     index = np.arange(2 * n)
-    pinned = np.unique(np.concatenate([uid[p], uid[q], vid[p], vid[q]]))
+    pinned = unique_sorted(np.concatenate([uid[p], uid[q], vid[p], vid[q]]))
     index = index - np.searchsorted(pinned, index, side="right")
     index[pinned] = -1
     ri, ci = index[rows], index[cols]

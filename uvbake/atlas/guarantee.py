@@ -29,6 +29,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
+from uvbake.mesh.arrays import unique_sorted
+
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
     from uvbake.flatten.solvers.result import ParamResult
@@ -275,10 +277,10 @@ def separating_split(chart: Chart, uv: ArrayLike, pairs: ArrayLike) -> tuple[lis
         if ok:
             sub = lab
     if sub is None:
-        sub = split_where(V, F, np.unique(pairs))
+        sub = split_where(V, F, unique_sorted(pairs))
     parts = sub_charts(chart, sub)
     starts = [np.asarray(uv)[_local_vertices(chart, p)] for p in parts]
-    rec = dict(chart=chart.name, faces=int(len(F)), bad=int(len(np.unique(pairs))), parts=len(parts),
+    rec = dict(chart=chart.name, faces=int(len(F)), bad=int(len(unique_sorted(pairs))), parts=len(parts),
                seam_length=seam_length(V, F, sub), reason="overlap")
     return parts, starts, rec
 

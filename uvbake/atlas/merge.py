@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from uvbake.mesh.arrays import pieces
+from uvbake.mesh.arrays import pieces, unique_sorted
 from uvbake.mesh.charts import Chart
 from uvbake.mesh.graph import components
 
@@ -235,7 +235,7 @@ class _Borders:
         self.charts, self.cache = charts, cache
         h, _ = _boundary_global(charts, cache)
         self.n = int(h[:, 3:].max()) + 1 if len(h) else 1
-        self.keys = np.unique(h[:, 3] * self.n + h[:, 4])
+        self.keys = unique_sorted(h[:, 3] * self.n + h[:, 4])
         self.exact = len(self.keys) == len(h)               # every half-edge in one chart only
         if not self.exact:
             return
@@ -284,8 +284,8 @@ class _Borders:
         self.owner[self.rows[keep][0]] = keep
         b = self.border
         touched = (b[:, 0] == keep) | (b[:, 0] == drop) | (b[:, 1] == keep) | (b[:, 1] == drop)
-        redo = np.unique(np.concatenate([b[touched, 0], b[touched, 1]])).astype(np.int64)
-        redo = np.unique(np.where(redo == drop, keep, redo - (redo > drop)))
+        redo = unique_sorted(np.concatenate([b[touched, 0], b[touched, 1]])).astype(np.int64)
+        redo = unique_sorted(np.where(redo == drop, keep, redo - (redo > drop)))
         b = b[~touched]
         b[:, :2] -= b[:, :2] > drop
         b = b[~np.isin(b[:, 0], redo)]
@@ -336,6 +336,6 @@ def _disk_with_holes(F, n):
     if not len(bnd):
         return False
     _, blab = components(n, bnd[:, 0], bnd[:, 1])
-    loops = len(np.unique(blab[np.unique(bnd)]))
+    loops = len(unique_sorted(blab[unique_sorted(bnd)]))
     chi = n - len(uniq) + len(F)
     return (2 - chi - loops) // 2 == 0

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from uvbake.mesh.arrays import unique_sorted
 from uvbake.mesh.charts import Chart
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency
@@ -31,7 +32,7 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
 
     V, F = chart.V, chart.F
     n = len(V)
-    bnd = np.unique(boundary_edges(F, n))
+    bnd = unique_sorted(boundary_edges(F, n))
     tips = np.setdiff1d(np.asarray(tips, dtype=np.int64), bnd)
     if len(tips) == 0:
         return None
@@ -45,7 +46,7 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     while len(cur):                                      # one step per path length (~sqrt(n)), vectorised over tips
         on[cur] = True
         cur = pred[cur]
-        cur = np.unique(cur[(cur >= 0)])
+        cur = unique_sorted(cur[(cur >= 0)])
         cur = cur[~on[cur]]
     a = np.flatnonzero(on & (pred >= 0))
     cut = np.isin(e[:, 0] * n + e[:, 1], np.minimum(a, pred[a]) * n + np.maximum(a, pred[a]))
@@ -102,7 +103,7 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
         return None
     _, loop = components(n, b[:, 0], b[:, 1])
     on_loop = np.full(n, -1)
-    verts = np.unique(b)
+    verts = unique_sorted(b)
     on_loop[verts] = loop[verts]
     ids, loop_of = np.unique(on_loop[verts], return_inverse=True)
     if not 2 <= len(ids) <= MAX_OPENED_LOOPS:

@@ -26,7 +26,7 @@ from uvbake.atlas.pack import _SHAPES_ONLY_FILL, PackResult, _check_gutter, _che
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.solvers.result import ParamResult
-from uvbake.mesh.arrays import signed_areas
+from uvbake.mesh.arrays import signed_areas, unique_sorted
 from uvbake.mesh.charts import Chart
 
 #: Split rounds at most (each cuts one chart in two or three and makes one trial layout).
@@ -233,7 +233,7 @@ def split_straight(chart: Chart, result: ParamResult,
     seams = ((side[fi] != side[fj]) * cost[:, None]).sum(axis=0)
     best = int(np.argmin(seams * (1.0 + IMBALANCE * np.abs(POSITIONS - 0.5))))
     lab = _absorb_slivers(F, n, side[:, best].astype(np.int64), a, SLIVER_SHARE, adj)
-    if len(np.unique(lab)) < 2:
+    if len(unique_sorted(lab)) < 2:
         return None
     parts = sub_charts(chart, lab, adj)
     if len(parts) < 2:

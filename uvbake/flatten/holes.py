@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from uvbake.mesh.arrays import signed_areas, triangle_areas
+from uvbake.mesh.arrays import signed_areas, triangle_areas, unique_sorted
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import _edges, boundary_edges
 
@@ -48,7 +48,7 @@ def holes(F: np.ndarray) -> int:
     if not len(F):
         return 0
     _, edges, _ = _edges(F, int(F.max()) + 1)
-    return max(0, 1 - (len(np.unique(F)) - len(edges) + len(F)))
+    return max(0, 1 - (len(unique_sorted(F)) - len(edges) + len(F)))
 
 
 def hole_fans(V: np.ndarray, F: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

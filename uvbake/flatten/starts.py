@@ -15,7 +15,7 @@ import scipy.sparse as sp
 from uvbake.errors import InputError
 from uvbake.flatten.energy import DistortionEnergy
 from uvbake.flatten.options import INITS
-from uvbake.mesh.arrays import signed_areas, triangle_areas
+from uvbake.mesh.arrays import signed_areas, triangle_areas, unique_sorted
 from uvbake.mesh.topology import boundary_edges, topology
 
 # Landmarks of the Isomap start (de Silva and Tenenbaum 2003). Time is linear in them; on beetle
@@ -26,7 +26,7 @@ ISOMAP_LANDMARKS = 64
 def farthest_boundary_pair(V: np.ndarray, F: np.ndarray, *, boundary: np.ndarray | None = None) -> tuple[int, int]:
     """Two boundary vertices far apart: the farthest from an arbitrary one, then the farthest from it.
     ``boundary``: the (b,2) boundary half-edges, when the caller has them."""
-    bnd = np.unique(boundary_edges(F, len(V)) if boundary is None else boundary)
+    bnd = unique_sorted(boundary_edges(F, len(V)) if boundary is None else boundary)
     p = bnd[np.argmax(np.linalg.norm(V[bnd] - V[bnd[0]], axis=1))]
     q = bnd[np.argmax(np.linalg.norm(V[bnd] - V[p], axis=1))]
     return int(p), int(q)

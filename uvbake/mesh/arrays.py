@@ -118,3 +118,20 @@ def pieces(a: np.ndarray, cut: ArrayLike) -> list[np.ndarray]:
     of pieces: np.split's per-piece bookkeeping is most of its cost there."""
     b = [0, *np.asarray(cut, dtype=np.int64).tolist(), len(a)]
     return [a[i:j] for i, j in zip(b[:-1], b[1:])]
+
+
+def unique_sorted(a: ArrayLike) -> np.ndarray:
+    """``np.unique(a)`` (the sorted distinct values of ``a`` flattened), by one sort: numpy 2.4's
+    np.unique without return_* options takes a hashing path 2-7x slower on integer arrays of 100 to
+    40,000 entries, which the mesh code calls hundreds of times per mesh. Other dtypes (NaNs) take
+    np.unique as it is."""
+    a = np.asarray(a)
+    if a.dtype.kind not in "iub":
+        return np.unique(a)
+    s = np.sort(a, axis=None)
+    if len(s) < 2:
+        return s
+    keep = np.empty(len(s), bool)
+    keep[0] = True
+    np.not_equal(s[1:], s[:-1], out=keep[1:])
+    return s[keep]

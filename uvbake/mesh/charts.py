@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.errors import ChartError, InputError, NotDiskError
-from uvbake.mesh.arrays import _list, check_arrays, unit_exponent
+from uvbake.mesh.arrays import _list, check_arrays, unique_sorted, unit_exponent
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import Topology, face_adjacency, nonmanifold_vertices, topology
 
@@ -159,15 +159,15 @@ def _disk_tests(charts, k):
     ok[cv[bow]] = False
     # topology per chart: one component, at least one boundary loop, genus 0 (as topology() counts them)
     _, lab = components(n, he[:, 0], he[:, 1])
-    comps = np.unique(cv.astype(np.int64) * n + lab)
+    comps = unique_sorted(cv.astype(np.int64) * n + lab)
     ok &= np.bincount(comps // n, minlength=k) == 1
     once = np.isin(np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1]), und[cnt == 1])
     bnd = he[once]
     loops = np.zeros(k, np.int64)
     if len(bnd):
         _, blab = components(n, bnd[:, 0], bnd[:, 1])
-        bv = np.unique(bnd)
-        loops = np.bincount(np.unique(cv[bv].astype(np.int64) * n + blab[bv]) // n, minlength=k)
+        bv = unique_sorted(bnd)
+        loops = np.bincount(unique_sorted(cv[bv].astype(np.int64) * n + blab[bv]) // n, minlength=k)
     chi = nv - np.bincount(cv[und // n], minlength=k) + nf
     disk = (loops >= 1) & (2 - chi - loops == 0)
     return ok & disk, ok & ~disk

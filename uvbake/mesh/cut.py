@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import dijkstra
 
 from uvbake.errors import ChartError, InputError
-from uvbake.mesh.arrays import _list, check_arrays, triangle_areas, unit_normals
+from uvbake.mesh.arrays import _list, check_arrays, triangle_areas, unique_sorted, unit_normals
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency, topology
 
@@ -291,7 +291,7 @@ def _make_valid(F, n, labels, fi, fj, hi, hj, max_rounds=100):
         if len(extra):
             move = np.zeros(nf, bool)
             move[extra] = True
-            faces = np.unique(corner[move[fan]] // 3)
+            faces = unique_sorted(corner[move[fan]] // 3)
             labels[faces] = 1 - labels[faces]
             changed = True
         if not changed:
@@ -360,7 +360,7 @@ def bisect(V: ArrayLike, F: ArrayLike, *, weights: ArrayLike | None = None, seed
     if seed_faces is None:
         field = _fiedler(m, fi, fj, w, mass)
     else:
-        seeds = np.unique(np.asarray(seed_faces, dtype=np.int64).ravel())
+        seeds = unique_sorted(np.asarray(seed_faces, dtype=np.int64).ravel())
         if len(seeds) == 0 or seeds.min() < 0 or seeds.max() >= m:
             raise InputError(f"bisect: seed_faces must be triangle indices in 0..{m - 1} (got {_list(seeds)})")
         if len(seeds) == m:
@@ -416,7 +416,7 @@ def split_where(V: ArrayLike, F: ArrayLike, bad_faces: ArrayLike, *, min_fractio
             raise InputError(f"split_where: the bad-triangle mask has shape {bad.shape}; pass one bool per "
                              f"triangle ({m}) or triangle indices")
         bad = np.flatnonzero(bad)
-    bad = np.unique(bad.astype(np.int64).ravel())
+    bad = unique_sorted(bad.astype(np.int64).ravel())
     if len(bad) and (bad.min() < 0 or bad.max() >= m):
         raise InputError(f"split_where: bad triangles {_list(bad[(bad < 0) | (bad >= m)])} are outside "
                          f"0..{m - 1}; pass indices into this chart's triangles")

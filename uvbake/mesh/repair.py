@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import breadth_first_order
 
 from uvbake.errors import InputError
-from uvbake.mesh.arrays import _list
+from uvbake.mesh.arrays import _list, unique_sorted
 from uvbake.mesh.cut import _corner_fans
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import nonmanifold_vertices
@@ -119,7 +119,7 @@ def _weld(V, F, weld_tol):
     bhe = he[cnt[inv] == 1]
     if len(bhe) < 2:
         return rep
-    bv = np.unique(bhe)
+    bv = unique_sorted(bhe)
     tol = weld_tol * _mean_edge(V, F)
     # clusters of boundary vertices at (nearly) the same position
     _, first, ex_inv = np.unique(V[bv], axis=0, return_index=True, return_inverse=True)
@@ -174,7 +174,7 @@ def _weld(V, F, weld_tol):
         bow = nonmanifold_vertices(G[~rpt], n)
         bad_v.append(np.array([v for v in bow.tolist() if v not in bow0], dtype=np.int64))
         bad_v = np.concatenate(bad_v)
-        undo_groups = np.unique(grp[welded & np.isin(rep, bad_v)])
+        undo_groups = unique_sorted(grp[welded & np.isin(rep, bad_v)])
         if len(undo_groups) == 0:
             break
         back = welded & np.isin(grp, undo_groups)
@@ -235,7 +235,7 @@ def _vertices_per_fan(F, n, fan):
     extra = extra[np.argsort(fan_corner[extra])]        # new vertices in order of first use
     new_id[extra] = n + np.arange(len(extra))
     vmap = np.concatenate([np.arange(n), fan_v[extra]])
-    return new_id[fan].reshape(-1, 3), vmap, np.unique(fan_v[extra])
+    return new_id[fan].reshape(-1, 3), vmap, unique_sorted(fan_v[extra])
 
 
 def _orient_parity(F, n):
@@ -398,13 +398,13 @@ def _orient(p: RepairResult) -> None:
         G, vmap, _ = _vertices_per_fan(F, n, fan)
         flip2, _, _, wfi, wfj, _, _ = _orient_parity(G, len(vmap))
         if len(wfi):
-            faces = np.unique(np.concatenate([fidx[vfi], fidx[vfj]]))
+            faces = unique_sorted(np.concatenate([fidx[vfi], fidx[vfj]]))
             raise InputError(f"repair: the mesh is not orientable around triangles {_list(faces)} (a "
                              "Moebius-like strip); cut it there or give those triangles their own segment label")
         p.actions.append({"kind": "cut_nonorientable", "count": int(len(vfi)),
-                          "examples": _ex(np.unique(fidx[vfi]))})
+                          "examples": _ex(unique_sorted(fidx[vfi]))})
         p.warnings.append(f"cut a non-orientable piece along {len(vfi)} edges (at triangles "
-                       f"{_list(np.unique(fidx[vfi]))}) so it can be oriented")
+                       f"{_list(unique_sorted(fidx[vfi]))}) so it can be oriented")
         p.F, p.V, p.vertex_index, flip = G, p.V[vmap], p.vertex_index[vmap], flip2
     if flip.any():
         p.actions.append({"kind": "flip_faces", "count": int(flip.sum()), "examples": _ex(fidx[flip])})

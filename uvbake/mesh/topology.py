@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from uvbake.mesh.arrays import unique_sorted
 from uvbake.mesh.graph import components
 
 
@@ -53,13 +54,13 @@ def topology(F: ArrayLike, n_vertices: int | None = None) -> Topology:
     F = np.asarray(F, dtype=np.int64)
     n = int(F.max()) + 1 if n_vertices is None else n_vertices
     he, uniq, boundary = _edges(F, n)
-    used = np.unique(F)
+    used = unique_sorted(F)
     n_comp_all, lab = components(n, he[:, 0], he[:, 1])
-    n_comp = len(np.unique(lab[used]))
+    n_comp = len(unique_sorted(lab[used]))
     if len(boundary):
-        bv = np.unique(boundary)
+        bv = unique_sorted(boundary)
         _, blab = components(n, boundary[:, 0], boundary[:, 1])
-        n_loops = len(np.unique(blab[bv]))
+        n_loops = len(unique_sorted(blab[bv]))
     else:
         n_loops = 0
     chi = len(used) - len(uniq) + len(F)
@@ -94,7 +95,7 @@ def nonmanifold_vertices(F: ArrayLike, n: int) -> np.ndarray:
     # distinct (vertex, fan) pairs as one int64 key: np.unique over rows (axis=0) sorts a structured
     # view, 5-10x slower than this 1-D sort
     nf = int(lab.max()) + 1 if len(lab) else 1
-    vc = np.unique(F.ravel() * nf + lab)
+    vc = unique_sorted(F.ravel() * nf + lab)
     counts = np.bincount(vc // nf, minlength=n)
     return np.flatnonzero(counts > 1)
 

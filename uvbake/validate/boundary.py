@@ -23,6 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from uvbake.mesh.arrays import unique_sorted
 from uvbake.validate.predicates import _orient
 
 #: Candidate boundary-segment pairs above which the sweep gives up (the full check is then cheaper).
@@ -59,7 +60,7 @@ def proven_injective(uvs: Sequence[ArrayLike], Fs: Sequence[ArrayLike]) -> np.nd
     vert_chart = np.repeat(np.arange(k), nv)
     seg_chart = vert_chart[seg[:, 0]]
     ok &= np.bincount(seg_chart, minlength=k) >= 3
-    bv = np.unique(seg)                                # two boundary vertices of one chart at one position
+    bv = unique_sorted(seg)                                # two boundary vertices of one chart at one position
     _, inv, cnt = np.unique(np.column_stack([vert_chart[bv], uv[bv]]), axis=0, return_inverse=True,
                             return_counts=True)
     ok[vert_chart[bv[cnt[inv.ravel()] > 1]]] = False
