@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from uvbake.mesh.arrays import unique_sorted
 from uvbake.validate import budgets
 
 
@@ -138,28 +139,17 @@ def _group_pairs(group, item, m, group_filter=None, unique=True, budget=None, wi
         kept += len(k)
         if with_groups:
             groups.append(g[a][ok])
-        keys.append(_sorted_unique(k) if unique and not with_groups else k)
+        keys.append(unique_sorted(k) if unique and not with_groups else k)
         s = e
     out = np.concatenate(keys)
     if with_groups:
         return out, np.concatenate(groups), bool(complete)
-    return (_sorted_unique(out) if unique else np.sort(out)), bool(complete)
+    return (unique_sorted(out) if unique else np.sort(out)), bool(complete)
 
 
 def _raw_budget(m):
     """Raw pairs a pass may enumerate for m faces."""
     return max(budgets.MIN_RAW_PAIRS, budgets.RAW_PAIRS_PER_FACE * m)
-
-
-def _sorted_unique(a):
-    """Sorted distinct values of a 1-D array (sort-based; faster here than np.unique's hashing)."""
-    a = np.sort(a)
-    if len(a) < 2:
-        return a
-    keep = np.empty(len(a), bool)
-    keep[0] = True
-    np.not_equal(a[1:], a[:-1], out=keep[1:])
-    return a[keep]
 
 
 def _bbox_pairs(corners, live, disjoint=None, confirm=None, max_pairs=None):

@@ -39,13 +39,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.errors import InputError
+from uvbake.mesh.arrays import unique_sorted
 from uvbake.validate import budgets
 from uvbake.validate.candidates import (
     _bbox_pairs,
     _edge_components,
     _half_edges,
     _row_ids,
-    _sorted_unique,
     _topology_filter,
 )
 from uvbake.validate.predicates import _interiors_overlap, _orient
@@ -143,7 +143,7 @@ def validate(
     Xi, Yi = _fixed_point(corners, origin, pixel_size)
     notes: list[str] = []
     spans, pix_keys, pix_of_key, covered_px, raster_complete = _raster_pass(Xi, Yi, rows, cols, m, notes)
-    raster_keys = _sorted_unique(pix_keys)
+    raster_keys = unique_sorted(pix_keys)
     t = lap("raster", t)
 
     # ---- exact pass -----------------------------------------------------------------------------
@@ -162,7 +162,7 @@ def validate(
     # touch both claim a pixel; the exact pass rejects those pairs, and their pixels do not count)
     if len(keys):
         at = np.minimum(np.searchsorted(keys, pix_keys), len(keys) - 1)
-        overlap_pix = _sorted_unique(pix_of_key[keys[at] == pix_keys])
+        overlap_pix = unique_sorted(pix_of_key[keys[at] == pix_keys])
     else:
         overlap_pix = np.zeros(0, np.int64)
     overlap_px = len(overlap_pix)
