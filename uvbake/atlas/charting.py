@@ -79,7 +79,9 @@ def disk_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None, *,
         pieces = creased if max_charts is None or len(creased) <= max_charts else pieces
     certified, shut = certified_disks(pieces, closed=True)
     for c, sure, to_cut in zip(pieces, certified, shut):   # one iteration per piece; the checks ran on all at once
-        if sure or not (to_cut and auto_cut) and _is_disk(c, auto_cut):
+        # a piece in doubt asks check_chart (which raises for what no cut repairs); a closed one is cut
+        disk = sure or (not (to_cut and auto_cut) and _is_disk(c, auto_cut))
+        if disk:
             out.append(c)
             continue
         # check_chart found it manifold; every label of cut_to_disks is a disk with holes (its contract)
