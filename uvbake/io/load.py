@@ -345,7 +345,9 @@ def _read_off_triangles(path: Path) -> MeshData | None:
         text = path.read_text(encoding="ascii")
     except (UnicodeDecodeError, OSError):
         return None
-    tokens = " ".join(line.split("#", 1)[0] for line in text.splitlines()).split()
+    if "#" in text:                                   # comments: cut each line's, one line at a time
+        text = " ".join(line.split("#", 1)[0] for line in text.splitlines())
+    tokens = text.split()
     if len(tokens) < 4 or tokens[0] != "OFF":
         return None
     try:
