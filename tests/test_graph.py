@@ -71,3 +71,19 @@ def test_unique_sorted_and_pieces_are_numpys():
     for cut in ([], [0], [100], [3, 3, 50, 99], np.array([10, 20])):
         got, want = pieces(a, cut), np.split(a, cut)
         assert len(got) == len(want) and all(np.array_equal(g, w) for g, w in zip(got, want))
+
+
+def test_dense_ranks_is_numpys_unique_with_inverse():
+    """Relabelling ids in [0, n) by marking the used ones gives np.unique's values and inverse, for
+    2-D and empty inputs and on both of its paths (n near the input's size, and n far larger)."""
+    from uvbake.mesh.arrays import dense_ranks
+
+    rng = np.random.default_rng(4)
+    for n, shape in [(10, (10,)), (500, (300, 3)), (40000, (40000,)), (10**6, (50,)), (7, (0,))]:
+        x = rng.integers(0, n, shape)
+        uniq, inv = dense_ranks(x, n)
+        want_u, want_i = np.unique(x, return_inverse=True)
+        assert uniq.dtype == want_u.dtype
+        np.testing.assert_array_equal(uniq, want_u)
+        np.testing.assert_array_equal(inv, want_i.ravel())
+        np.testing.assert_array_equal(uniq[inv], x.ravel())

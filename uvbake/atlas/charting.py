@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike
 from uvbake.atlas.conformal import _frames, conformal_factor, conformal_factors
 from uvbake.atlas.opening import open_holes, slit
 from uvbake.errors import ChartError, InputError
-from uvbake.mesh.arrays import triangle_areas, unique_sorted, unit_normals
+from uvbake.mesh.arrays import dense_ranks, triangle_areas, unique_sorted, unit_normals
 from uvbake.mesh.charts import Chart, certified_disks, check_chart, split_charts
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency
@@ -156,7 +156,7 @@ def sub_charts(chart: Chart, sub_labels: ArrayLike, adjacency: tuple | None = No
     parts = []
     for k, c in enumerate(order):                       # one iteration per part
         fidx = by[bounds[c]:bounds[c + 1]]
-        fans, local = np.unique(fan[fidx], return_inverse=True)
+        fans, local = dense_ranks(fan[fidx], int(fan.max()) + 1)
         corner_of_fan = np.full(fan.max() + 1, -1)
         corner_of_fan[fan[fidx].ravel()] = F[fidx].ravel()
         verts = corner_of_fan[fans]

@@ -135,3 +135,17 @@ def unique_sorted(a: ArrayLike) -> np.ndarray:
     keep[0] = True
     np.not_equal(s[1:], s[:-1], out=keep[1:])
     return s[keep]
+
+
+def dense_ranks(x: ArrayLike, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(x, return_inverse=True)`` for integers in ``[0, n)``, flattened inverse: by marking the
+    values used when ``n`` is not much more than ``x``'s size (no sort: the mesh code relabels vertex and
+    component ids hundreds of times per mesh), else np.unique as it is."""
+    x = np.asarray(x).ravel()
+    if n > 4 * len(x) + 64:
+        uniq, inv = np.unique(x, return_inverse=True)
+        return uniq, inv.ravel()
+    used = np.zeros(n, bool)
+    used[x] = True
+    rank = np.cumsum(used) - 1
+    return np.flatnonzero(used).astype(x.dtype, copy=False), rank[x]

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.errors import ChartError, InputError, NotDiskError
-from uvbake.mesh.arrays import _list, check_arrays, unique_sorted, unit_exponent
+from uvbake.mesh.arrays import _list, check_arrays, dense_ranks, unique_sorted, unit_exponent
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import Topology, face_adjacency, nonmanifold_vertices, topology
 
@@ -219,7 +219,7 @@ def split_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
     for c in range(len(bounds) - 1):           # one iteration per chart, not per triangle
         fidx = faces_by_chart[bounds[c]:bounds[c + 1]]
         Fc = F[fidx]
-        vmap, local = np.unique(Fc, return_inverse=True)
+        vmap, local = dense_ranks(Fc, len(V))
         lab = int(labels[fidx[0]]) if named else -1
         name = f"chart {c}" + (f" (label {lab})" if named else "")
         chart = Chart(V[vmap], local.reshape(-1, 3).astype(np.int64), vmap, fidx, lab, name)

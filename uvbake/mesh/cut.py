@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import dijkstra
 
 from uvbake.errors import ChartError, InputError
-from uvbake.mesh.arrays import _list, check_arrays, triangle_areas, unique_sorted, unit_normals
+from uvbake.mesh.arrays import _list, check_arrays, dense_ranks, triangle_areas, unique_sorted, unit_normals
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency, topology
 
@@ -464,7 +464,7 @@ def cut_to_disks(V: ArrayLike, F: ArrayLike, *, max_charts: int = 64, manifold: 
     while todo:                                     # one iteration per chart
         c = todo.pop()
         fidx = np.flatnonzero(labels == c)
-        vmap, local = np.unique(F[fidx], return_inverse=True)
+        vmap, local = dense_ranks(F[fidx], n)
         Fc = local.reshape(-1, 3)
         topo = topology(Fc, len(vmap))
         if topo.genus == 0 and topo.n_boundary_loops >= 1 and topo.n_components == 1:

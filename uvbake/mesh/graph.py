@@ -19,6 +19,8 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
+from uvbake.mesh.arrays import dense_ranks
+
 #: Edge lists up to this length are labelled with numpy; longer ones take scipy's undirected call as it is
 #: (6,000 edges: 0.49 ms against scipy's 0.42).
 DIRECT_MAX_EDGES = 2048
@@ -39,7 +41,7 @@ def components(n: int, i: ArrayLike, j: ArrayLike) -> tuple[int, np.ndarray]:
     labels = _propagate(n, i, j)
     if labels is None:
         return _undirected(n, i, j)
-    roots, labels = np.unique(labels, return_inverse=True)   # roots are each component's lowest node
+    roots, labels = dense_ranks(labels, n)                   # roots are each component's lowest node
     return len(roots), labels.astype(np.int32)
 
 
