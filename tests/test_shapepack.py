@@ -454,7 +454,7 @@ def test_row_widening_is_scipys_maximum_filter():
         assert np.array_equal(_widen_rows(a, r), maximum_filter1d(a, size=2 * r + 1, axis=1, mode="constant"))
 
 
-def test_runs_of_footprints_found_together_are_each_footprints_own_runs():
+def test_runs_of_footprints_found_together_are_each_footprints_own_runs(monkeypatch):
     """The packer finds the horizontal runs of every candidate footprint in one pass (footprints laid
     end to end, padded by a free column); each footprint's runs must be its own (a brute-force scan
     of every row), and their test order the documented one: the longest run first (the first of
@@ -464,6 +464,11 @@ def test_runs_of_footprints_found_together_are_each_footprints_own_runs():
     fps = [f for f in fps if f.any()] + [np.ones((3, 4), bool), np.eye(5, dtype=bool)[:, ::-1]]
     together = shapepack._raw_runs_many(fps)
     ordered = shapepack._runs_many(together)
+    monkeypatch.setattr(shapepack, "_BATCH_CELLS", 40)             # several groups, a big one alone
+    grouped = shapepack._raw_runs_many(fps)
+    assert len(grouped) == len(fps)
+    for g, t in zip(grouped, together):
+        assert all(np.array_equal(x, y) for x, y in zip(g, t))
     for fp, (dy, a, L), (ody, oa, oL) in zip(fps, together, ordered):
         expect = []
         for r, row in enumerate(fp):

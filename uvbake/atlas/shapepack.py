@@ -2,7 +2,8 @@
 
 Every chart is rasterised at the atlas's texel resolution into its *footprint* (uvbake.atlas.footprint):
 every texel whose closed square meets one of the chart's triangles; holes stay free for other charts.
-Placing footprints at integer texel offsets keeps them exact. Two texels ``(i, j)`` and ``(i + di, j + dj)`` are ``sqrt(max(|di|-1,0)^2 + max(|dj|-1,0)^2)``
+Placing footprints at integer texel offsets keeps them exact. Two texels ``(i, j)`` and
+``(i + di, j + dj)`` are ``sqrt(max(|di|-1,0)^2 + max(|dj|-1,0)^2)``
 apart at least, so once a chart is placed, the texels within that distance ``< gutter_px`` of its
 footprint (a 3x3 dilation, then a Euclidean distance transform) are blocked for every later chart:
 any two charts end up at least ``gutter_px`` texels apart in exact geometry, every chart
@@ -27,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uvbake.atlas.distance import boundary_halfedges
-from uvbake.atlas.footprint import _EPS, footprints
+from uvbake.atlas.footprint import _BATCH_CELLS, _EPS, footprints
 from uvbake.mesh.arrays import pieces, signed_areas
 
 _CHUNK = 16          # candidate rows tested together
@@ -44,7 +45,18 @@ def _raw_runs_many(fps):
     """_raw_runs of several footprints in one pass: each padded with a free column either side and all
     laid end to end in one flat array. Every padded row starts and ends free, so the changes along
     the flat array alternate: a run's start, then its end (one 1-D pass: 10x faster than 2-D
-    np.nonzero of a row difference)."""
+    np.nonzero of a row difference). Groups of about _BATCH_CELLS texels bound the memory."""
+    size = np.array([f.shape[0] * (f.shape[1] + 2) for f in fps], np.int64)   # one per footprint
+    out, i0 = [], 0
+    while i0 < len(fps):                      # one iteration per group of footprints
+        i1 = i0 + max(1, int(np.searchsorted(np.cumsum(size[i0:]), _BATCH_CELLS, side="right")))
+        out += _raw_runs_group(fps[i0:i1])
+        i0 = i1
+    return out
+
+
+def _raw_runs_group(fps):
+    """_raw_runs_many of one group: the footprints end to end in one flat array."""
     h = np.array([f.shape[0] for f in fps], np.int64)              # one per footprint
     w = np.array([f.shape[1] for f in fps], np.int64) + 2
     size = h * w

@@ -131,11 +131,10 @@ def _disk_tests(charts, k):
     F = np.concatenate([np.asarray(c.F, dtype=np.int64) for c in charts])
     if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
         return ok & False, ok & False
-    local = F
-    ok &= np.bincount(cf, weights=((local < 0) | (local >= nv[cf][:, None])).any(axis=1), minlength=k) == 0
+    ok &= np.bincount(cf, weights=((F < 0) | (F >= nv[cf][:, None])).any(axis=1), minlength=k) == 0
     if not ok.all():                                  # out-of-range indices: check_chart names them
         return ok & False, ok & False
-    F = local + voff[cf][:, None]
+    F = F + voff[cf][:, None]
     n = len(V)
     absmax = np.maximum.reduceat(np.abs(V).max(axis=1), voff)
     ok &= np.isfinite(absmax)
@@ -169,7 +168,7 @@ def _disk_tests(charts, k):
         bv = unique_sorted(bnd)
         loops = np.bincount(unique_sorted(cv[bv].astype(np.int64) * n + blab[bv]) // n, minlength=k)
     chi = nv - np.bincount(cv[und // n], minlength=k) + nf
-    disk = (loops >= 1) & (2 - chi - loops == 0)
+    disk = (loops >= 1) & ((2 - chi - loops) // 2 == 0)             # topology()'s genus, one component
     return ok & disk, ok & ~disk
 
 
