@@ -91,3 +91,31 @@ def test_iterations_from_random_and_lscm_starts_stay_low():
     V, F = bumpy_disk()
     assert uvbake.parameterize(V, F, alpha=0.5, init="lscm").iterations <= 20
     assert uvbake.parameterize(V, F, alpha=0.5, init="random").iterations <= 60
+
+
+def test_a_certificate_past_its_lanczos_cap_says_not_checked_and_is_the_same_every_run(monkeypatch):
+    # the cap is a work count (restarts), never a time: past it lambda_min is NaN and the chart's
+    # verdict None ("not checked"), not a guess; within it the eigenvalue is the dense one
+    import uvbake.flatten.solvers.certificate as certificate
+
+    V, F = bumpy_disk(n=8)
+    r = uvbake.parameterize(V, F, alpha=0.5)
+    unit = np.mean(np.linalg.norm(V[F[:, [1, 2, 0]]] - V[F], axis=2))
+    E = DistortionEnergy((V - V.mean(axis=0)) / unit, F, alpha=0.5)
+    uv = r.uv / unit
+    monkeypatch.setattr(certificate, "DENSE_MAX", 12)
+    seen = []
+    real = certificate.spla.eigsh
+
+    def counted(op, **kw):
+        seen.append(kw["maxiter"])
+        return real(op, **kw)
+
+    monkeypatch.setattr(certificate.spla, "eigsh", counted)
+    assert certify(E, uv).lambda_min == pytest.approx(_dense_lambda_min(E, uv), rel=1e-6)
+    assert seen == [certificate.LANCZOS_RESTARTS]
+    monkeypatch.setattr(certificate, "LANCZOS_TOL", 1e-300)      # unreachable: every restart is spent
+    monkeypatch.setattr(certificate, "LANCZOS_RESTARTS", 2)
+    a, b = certify(E, uv), certify(E, uv)
+    assert np.isnan(a.lambda_min) and a.is_local_minimum is None and a.vector is None
+    assert np.isnan(b.lambda_min) and b.is_local_minimum is None
