@@ -13,10 +13,11 @@ bound with a line search).
 
 What the bound cannot prevent is handled like a flip, once per bad region, never by re-solving whole
 charts in a loop: a triangle whose area factor falls below 1/max_stretch of its chart's mean
-(texel starvation), and boundary overlaps (two parts of a chart's boundary that cross in the plane).
+(texel starvation), one sheared past max_stretch^2 (sigma1/sigma2: near alpha 1 the energy barely
+weighs angles), and boundary overlaps (two parts of a chart's boundary that cross in the plane).
 The chart is split once so that the bad region goes to one side (a short cut,
 :func:`uvbake.mesh.cut.split_where`); each side starts from the parent's map restricted to it (still
-flip-free), and only the sides are solved again. The number of such splits is bounded by a work
+flip-free; after a shear, from its own conformal map), and only the sides are solved again. The number of such splits is bounded by a work
 count (``max_splits``), never by time.
 """
 
@@ -91,6 +92,57 @@ def area_factors(chart: Chart, uv: ArrayLike) -> np.ndarray:
         return np.where(a3 > 0, (a2 / a3) / (total / a3.sum()), 1.0)
 
 
+def shear_ratios(V: np.ndarray, F: np.ndarray, uv: ArrayLike) -> np.ndarray:
+    """(m,) each triangle's angle distortion sigma1/sigma2 (the singular values of its Jacobian):
+    1 for a similarity, inf where the map flips or collapses it; 1 for a triangle without 3D area.
+    From ``|J|_F^2 / |det J| = r + 1/r`` with ``r = sigma1/sigma2``, no SVD."""
+    X = np.asarray(V, dtype=np.float64)[F]
+    U = np.asarray(uv, dtype=np.float64)[F]
+    return _shears(X, U)
+
+
+def _shears(X, U):
+    """shear_ratios of the triangles with 3D corners X (m,3,3) and UV corners U (m,3,2)."""
+    e1, e2 = X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]
+    n1 = np.linalg.norm(e1, axis=1)
+    two_a = np.linalg.norm(np.cross(e1, e2), axis=1)               # twice the 3D area
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # the triangle in its own plane: (0,0), (n1,0), (x2,y2); J maps it onto its UV corners
+        x2 = np.einsum("ij,ij->i", e1, e2) / n1
+        y2 = two_a / n1
+        d1, d2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
+        c1 = d1 / n1[:, None]                                      # J's first column
+        c2 = (d2 - x2[:, None] * c1) / y2[:, None]                 # its second
+        det = c1[:, 0] * c2[:, 1] - c1[:, 1] * c2[:, 0]
+        k = (np.einsum("ij,ij->i", c1, c1) + np.einsum("ij,ij->i", c2, c2)) / np.abs(det)
+        r = 0.5 * (k + np.sqrt(np.maximum(k * k - 4.0, 0.0)))
+    r = np.where(det > 0, r, np.inf)
+    return np.where(two_a > 0, np.where(np.isnan(r), np.inf, r), 1.0)
+
+
+def _end_to_end(charts, uvs):
+    """Every chart's triangles laid end to end: (chart of each triangle, 3D corners, UV corners)."""
+    k = len(charts)
+    nv = np.array([len(c.V) for c in charts])                  # one per chart
+    nf = np.array([len(c.F) for c in charts])
+    cf = np.repeat(np.arange(k), nf)
+    F = np.concatenate([c.F for c in charts]) + np.repeat(np.cumsum(nv) - nv, nf)[:, None]
+    X = np.concatenate([c.V for c in charts])[F]
+    U = np.concatenate([np.asarray(u, dtype=np.float64) for u in uvs])[F]
+    return cf, X, U
+
+
+def worst_shears(charts: list[Chart], uvs: list) -> np.ndarray:
+    """(k,) each chart's largest :func:`shear_ratios`, computed on all charts at once."""
+    k = len(charts)
+    if k == 0:
+        return np.zeros(0)
+    cf, X, U = _end_to_end(charts, uvs)
+    worst = np.full(k, 1.0)
+    np.maximum.at(worst, cf, _shears(X, U))
+    return worst
+
+
 def least_factors(charts: list[Chart], uvs: list) -> np.ndarray:
     """(k,) each chart's least :func:`area_factors`, computed on all charts at once (laid end to end;
     each chart's totals summed per chart, so within about 1e-12 relative of area_factors'); -inf for a
@@ -98,13 +150,8 @@ def least_factors(charts: list[Chart], uvs: list) -> np.ndarray:
     k = len(charts)
     if k == 0:
         return np.zeros(0)
-    nv = np.array([len(c.V) for c in charts])                  # one per chart
-    nf = np.array([len(c.F) for c in charts])
-    cf = np.repeat(np.arange(k), nf)
-    F = np.concatenate([c.F for c in charts]) + np.repeat(np.cumsum(nv) - nv, nf)[:, None]
-    X = np.concatenate([c.V for c in charts])[F]
+    cf, X, U = _end_to_end(charts, uvs)
     a3 = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
-    U = np.concatenate([np.asarray(u, dtype=np.float64) for u in uvs])[F]
     e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
     a2 = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
     t2, t3 = np.bincount(cf, weights=a2, minlength=k), np.bincount(cf, weights=a3, minlength=k)
@@ -122,14 +169,15 @@ LOW_AREA_SHARE = 0.004
 
 
 def starved_or_flipped(chart: Chart, uv: ArrayLike, max_stretch: float) -> np.ndarray:
-    """Triangles that are flipped, collapsed, or starved: below 1/max_stretch^2 of the chart's mean
-    texel density, and also those below 1/max_stretch when they cover more than LOW_AREA_SHARE of
-    the chart. Charting keeps the conformal start at 1/max_stretch or more; the solve may move a few
+    """Triangles that are flipped, collapsed, sheared or starved: below 1/max_stretch^2 of the chart's
+    mean texel density, and also those below 1/max_stretch when they cover more than LOW_AREA_SHARE of
+    the chart; sheared: sigma1/sigma2 above max_stretch^2 (:func:`shear_ratios`). Charting keeps the
+    conformal start at 1/max_stretch or more (and sigma1/sigma2 at 1); the solve may move a few
     triangles by up to the budget again (default 4: the floor is 1/16, the least share the atlas
     promises, and at most 0.4% of the area below 1/4). Measured: the paper's unweighted conformal map
     at alpha 0 left 2% of camelhead's area below 1/4 where the area-weighted prediction left none."""
     f = area_factors(chart, uv)
-    bad = f < 1.0 / max_stretch ** 2
+    bad = (f < 1.0 / max_stretch ** 2) | (shear_ratios(chart.V, chart.F, uv) > max_stretch ** 2)
     low = f < 1.0 / max_stretch
     X = chart.V[chart.F]
     a3 = np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
@@ -440,17 +488,24 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
 def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits):
     """Split each chart in ``todo`` that starves, flipped or overlaps itself, once (records appended
     to ``splits``). Returns [(chart index, parts, their starts)]."""
-    overlaps = overlapping_pairs([charts[i] for i in todo], [results[i].uv for i in todo])
-    # a chart whose least area factor is clearly above 1/max_stretch neither starves nor flipped
-    fine = least_factors([charts[i] for i in todo], [results[i].uv for i in todo]) >= (1 + 1e-9) / max_stretch
+    some = [charts[i] for i in todo], [results[i].uv for i in todo]
+    overlaps = overlapping_pairs(*some)
+    # a chart whose least area factor is clearly above 1/max_stretch and no triangle sheared past
+    # max_stretch^2 neither starves, shears nor flipped
+    sheared = worst_shears(*some) > max_stretch ** 2
+    fine = (least_factors(*some) >= (1 + 1e-9) / max_stretch) & ~sheared
     new = []
-    for i, pairs, sure in zip(todo, overlaps, fine):
+    for i, pairs, sure, shear in zip(todo, overlaps, fine, sheared):
         c = charts[i]
         if len(c.F) < 2 or len(splits) >= max_splits:
             continue
         bad = np.zeros(0, np.int64) if sure else starved_or_flipped(c, results[i].uv, max_stretch)
         if len(bad):
             parts, pstarts, rec = split_bad(c, results[i].uv, bad)
+            if shear:       # the parent's map would keep its shear (alpha near 1 barely weighs angles):
+                rec["reason"] = "sheared"                 # the parts start from their own conformal maps
+                fresh = _own_conformal_starts(parts, range(len(parts)))
+                pstarts = [fresh.get(k, st) for k, st in enumerate(pstarts)]
         elif len(pairs):
             parts, pstarts, rec = separating_split(c, results[i].uv, pairs)
         else:

@@ -147,10 +147,11 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
         Weld coincident boundary vertices: None only for soup-like input, True always, False never.
         The input's own cuts (duplicated positions along a seam) otherwise stay cuts.
     guarantee : bool
-        No flipped, overlapping or starved triangle (False: the paper's result as is).
+        No flipped, overlapping, starved or sheared triangle (False: the paper's result as is).
     max_stretch : float, optional
         Distortion budget (> 1, default 4): every triangle's area factor, relative to its chart's,
-        at least 1/max_stretch (charts are cut before solving so their conformal maps keep it).
+        at least 1/max_stretch (charts are cut before solving so their conformal maps keep it;
+        1/max_stretch^2 after the solve), and its angle distortion sigma1/sigma2 at most max_stretch^2.
     max_charts : int, optional
         Chart budget: charting stops cutting at this many charts (the guarantee's splits still happen).
     max_splits : int, optional

@@ -116,7 +116,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "removed) and no continuation from invalid starts")
     g.add_argument("--max-stretch", type=float, default=None, metavar="S",
                    help="distortion budget: every triangle keeps at least 1/S of its chart's texel density "
-                        "(charts are cut before solving so they can; default 4)")
+                        "(charts are cut before solving so they can; 1/S^2 after the solve) and its "
+                        "angle distortion sigma1/sigma2 stays at most S^2; default 4")
     g.add_argument("--max-charts", type=int, default=None, metavar="N",
                    help="chart budget: stop cutting for the distortion budget at N charts (the guarantee's "
                         "splits may still add some)")

@@ -1,0 +1,68 @@
+"""The distortion budget bounds angle distortion too: no triangle's sigma1/sigma2 above max_stretch^2."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import uvbake
+from uvbake.analysis.metrics import singular_values
+from uvbake.atlas.guarantee import shear_ratios, worst_shears
+from uvbake.mesh.charts import Chart
+
+from meshgen import plane
+
+SCENES = Path(__file__).resolve().parents[1] / "sample_scenes"
+
+
+def test_shear_ratio_is_the_singular_value_ratio_inf_when_flipped_and_1_without_3d_area():
+    rng = np.random.default_rng(3)
+    V = rng.normal(size=(200, 3))
+    F = np.array([f for f in rng.integers(0, 200, size=(400, 3)) if len(set(f)) == 3])
+    uv = rng.normal(size=(200, 2))
+    got = shear_ratios(V, F, uv)
+    s1, s2, det, _ = singular_values(V, F, uv)
+    pos = det > 0
+    assert pos.any() and (~pos).any()
+    np.testing.assert_allclose(got[pos], s1[pos] / s2[pos], rtol=1e-10)
+    assert np.all(np.isinf(got[~pos]))
+    # a similarity keeps angles; a stretch by 5 along one axis has ratio 5; a 3D sliver has no shape
+    V3 = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0.0]])
+    F3 = np.array([[0, 1, 2], [0, 1, 3]])
+    R = np.array([[0.6, -0.8], [0.8, 0.6]])
+    assert shear_ratios(V3, F3[:1], 3.0 * V3[:, :2] @ R.T)[0] == pytest.approx(1.0, abs=1e-12)
+    assert shear_ratios(V3, F3[:1], V3[:, :2] * [5.0, 1.0])[0] == pytest.approx(5.0, rel=1e-12)
+    assert shear_ratios(V3, F3[1:], V3[:, :2])[0] == 1.0
+
+
+def test_worst_shears_of_many_charts_at_once_are_each_charts_own():
+    rng = np.random.default_rng(5)
+    charts, uvs = [], []
+    for k in range(5):
+        V, F = plane(3 + k, 4, jitter=0.2)
+        uv = V[:, :2] * [1.0 + k, 1.0] + rng.normal(0, 0.03, (len(V), 2))
+        charts.append(Chart(V, F, np.arange(len(V)), np.arange(len(F))))
+        uvs.append(uv)
+    got = worst_shears(charts, uvs)
+    want = [shear_ratios(c.V, c.F, uv).max() for c, uv in zip(charts, uvs)]
+    np.testing.assert_allclose(got, want, rtol=0, atol=0)
+    assert got[4] > got[0]
+
+
+def _worst_shear_of_atlas(result):
+    s1, s2, det, _ = singular_values(result.V, result.F, result.corner_uv)
+    assert np.all(det > 0)
+    return float(np.max(s1 / s2))
+
+
+def test_an_area_only_map_is_cut_where_it_shears_past_the_budget():
+    # alpha 1 weighs only area: the solve shears a spherical cap's rim freely (sigma1/sigma2 about 58
+    # without the bound); the guarantee splits the chart there and starts the parts from their own
+    # conformal maps, so every triangle ends within max_stretch^2
+    res = uvbake.unwrap(str(SCENES / "sphere_cap.ply"), alpha=1.0, texture_size_px=256)
+    assert _worst_shear_of_atlas(res) <= 4.0 ** 2
+    assert any(s["reason"] == "sheared" for s in res.report["splits"])
+    tight = uvbake.unwrap(str(SCENES / "sphere_cap.ply"), alpha=1.0, texture_size_px=256, max_stretch=2.0)
+    assert _worst_shear_of_atlas(tight) <= 2.0 ** 2
+    paper = uvbake.unwrap(str(SCENES / "sphere_cap.ply"), alpha=1.0, texture_size_px=256, guarantee=False)
+    assert _worst_shear_of_atlas(paper) > 4.0 ** 2          # what the bound removed
