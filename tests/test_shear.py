@@ -66,3 +66,35 @@ def test_an_area_only_map_is_cut_where_it_shears_past_the_budget():
     assert _worst_shear_of_atlas(tight) <= 2.0 ** 2
     paper = uvbake.unwrap(str(SCENES / "sphere_cap.ply"), alpha=1.0, texture_size_px=256, guarantee=False)
     assert _worst_shear_of_atlas(paper) > 4.0 ** 2          # what the bound removed
+
+
+def _bench_shape(name):
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "bench" / "shapes.py"
+    spec = importlib.util.spec_from_file_location("bench_shapes", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    m = mod.shapes()[name]
+    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+
+
+@pytest.mark.slow
+def test_the_guarantee_splits_until_nothing_is_bad_however_many_rounds_that_takes(monkeypatch):
+    # a sphere with five fingers kept as few charts as asked (--max-charts 1): its big charts overlap
+    # and shear after the solve, and the splits peel them apart over more than 8 rounds (the old fixed
+    # cap, which left this atlas overlapping); the rounds are bounded by the splits' cap alone
+    from uvbake.atlas import guarantee
+
+    rounds = []
+    real = guarantee._split_bad_charts
+
+    def counted(*args):
+        new = real(*args)
+        rounds.append(len(new))
+        return new
+
+    monkeypatch.setattr(guarantee, "_split_bad_charts", counted)
+    res = uvbake.unwrap(_bench_shape("fingers"), alpha=0.5, max_charts=1, texture_size_px=256)
+    assert res.report["valid"] and res.report["n_flipped_total"] == 0
+    assert len(rounds) > 8 and rounds[-1] == 0          # ended because nothing was left to split

@@ -456,13 +456,15 @@ MIN_SPLITS = 256
 
 
 def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *, max_stretch: float,
-                workers: int | None = None, max_splits: int | None = None, max_rounds: int = 8,
+                workers: int | None = None, max_splits: int | None = None, max_rounds: int | None = None,
                 note: Callable[[str, int, int], None] | None = None) -> tuple[list[Chart], list[ParamResult], list[dict]]:
     """Solve every chart with the injective LM from its start, then check each chart once: what
     starves (or flipped because the start was not valid) is split once per bad region, overlapping
     sheets are split apart, and only the parts are solved again, from the parent's map. Rounds and
-    splits are bounded by counts (``max_rounds``, ``max_splits``), never by time. Only the charts
-    that changed in a round are checked in the next.
+    splits are bounded by counts, never by time: every round splits at least one chart, so the
+    splits' cap ``max_splits`` bounds the rounds too (``max_rounds``, None: no other bound; a fixed 8
+    left bench/shapes.py's fingers with --max-charts 1 overlapping after its 8th round, one chart
+    still split in each of the last two). Only the charts that changed in a round are checked in the next.
 
     Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart."""
     note = note or (lambda stage, done, total: None)
@@ -472,7 +474,9 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     results = _solve_flip_free(charts, starts, options, workers, lambda d, n, r: note("solve", d, n))
     splits: list[dict] = []
     todo = list(range(len(charts)))
-    for _ in range(max_rounds):                       # rounds: each splits every bad chart once
+    rounds = 0
+    while max_rounds is None or rounds < max_rounds:   # rounds: each splits every bad chart once
+        rounds += 1
         if not todo or len(splits) >= max_splits:
             break
         new = _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits)
