@@ -85,6 +85,8 @@ def test_default_output_sits_beside_the_input(scene):
     (["{scene}", "--gutter", "-2"], "--gutter"),
     (["{scene}", "--mip-levels", "2", "--gutter", "4"], "--gutter 4 is less than the 10 texels --mip-levels 2"),
     (["{scene}", "--mip-levels", "0"], "--mip-levels 0"),
+    (["{scene}", "--mip-levels", "6"], "--mip-levels 6 needs a 138-texel gutter, more than 128 (an eighth of "
+                                       "--texture-size 1024); use --mip-levels 5 or fewer, or a --texture-size of at least 1120"),
     (["{scene}", "--texel-density", "-5"], "--texel-density: -5 must be above 0"),
     (["{scene}", "--texel-density", "5000", "--texture-size", "64"], "cannot fit texture_size_px=64"),
     (["{scene}", "--bake", "{tmp}/texture.jpg"], "must end in .png"),

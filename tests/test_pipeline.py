@@ -97,6 +97,11 @@ def test_report_shows_the_price_of_the_guarantee():
     (dict(texture_size_px=8), "texture_size_px"), (dict(texture_size_px=100.5), "texture_size_px"),
     (dict(gutter_px=-1), "gutter_px"), (dict(bake="plasma"), "bake"), (dict(alpha=2), "alpha"),
     (dict(texture_size_px=(512, 8)), "texture_size_px"), (dict(texture_size_px=(64, 32), gutter_px=5), "gutter_px"),
+    # the gutter mip_levels derives is held to an eighth of the texture too, and the fix names sizes that work
+    (dict(mip_levels=8), r"mip_levels=8 needs a 545-texel gutter, more than 128 .* mip_levels=5 or fewer, or a "
+                         r"texture_size_px of at least 4480"),
+    (dict(mip_levels=1, texture_size_px=16), r"needs a 6-texel gutter, more than 2 .*; pass a texture_size_px of at "
+                                             r"least 48"),
 ])
 def test_bad_options(kwargs, match):
     V, F = bumpy_disk(6)
@@ -201,3 +206,17 @@ def test_a_rectangular_atlas_keeps_each_charts_map_up_to_a_similarity_in_texels(
         # and the same orientation (no mirror): signed areas agree in sign
         assert np.all(np.sign(signed_areas(texels[c.face_index].reshape(-1, 2), np.arange(3 * len(c.F)).reshape(-1, 3)))
                       == np.sign(signed_areas(np.asarray(r.uv), c.F)))
+
+
+@pytest.mark.parametrize("levels, size", [(1, 48), (6, 1120), (8, 4480)])
+def test_the_least_texture_a_mip_levels_error_names_is_the_least_accepted(levels, size):
+    # the least side with room for the gutter that the levels halve evenly: it passes, the next smaller
+    # such side does not; and the most levels a 1024 texture holds is what the error offers
+    from uvbake.atlas.pipeline import check_texture, mip_levels_within, mip_room
+    from uvbake.atlas.shapepack import mip_gutter_px
+
+    assert mip_room(levels, mip_gutter_px(levels)) == size
+    assert check_texture(size, None, None, levels) == size
+    with pytest.raises(uvbake.InputError, match="an eighth of the texture"):
+        check_texture(size - 2 ** (levels - 1), None, None, levels)
+    assert mip_levels_within(1024 // 8) == 5 and mip_gutter_px(6) > 1024 // 8 >= mip_gutter_px(5)

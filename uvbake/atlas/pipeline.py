@@ -218,7 +218,8 @@ def _unwrap(source, **opts):
                                                          "continuation")})
     if opts["bake"] not in BAKE_MODES:
         raise InputError(f"bake={opts['bake']!r} is not one of None, 'checker', 'vertex-colors'")
-    opts["texture_size_px"] = check_texture(opts["texture_size_px"], opts["gutter_px"], opts["texel_density"])
+    opts["texture_size_px"] = check_texture(opts["texture_size_px"], opts["gutter_px"], opts["texel_density"],
+                                            opts["mip_levels"])
     opts["max_stretch"], opts["max_charts"] = check_budget(
         DEFAULT_MAX_STRETCH if opts["max_stretch"] is None else opts["max_stretch"], opts["max_charts"])
     if opts["weld"] not in (None, True, False):
@@ -456,9 +457,10 @@ def _pack_and_validate(run, pack_options):
 
 
 def check_texture(texture_size_px: int | tuple[int, int] | None, gutter_px: int | None,
-                  texel_density: float | None = None) -> int | tuple[int, int] | None:
-    """Refuse a bad texture size or gutter (naming the parameter); returns the size as one number for a
-    square texture ((N, N) too), (width, height) for a rectangular one, None for a growing atlas."""
+                  texel_density: float | None = None, mip_levels: int | None = None) -> int | tuple[int, int] | None:
+    """Refuse a bad texture size or gutter (naming the parameter), the gutter ``mip_levels`` derives
+    included; returns the size as one number for a square texture ((N, N) too), (width, height) for a
+    rectangular one, None for a growing atlas."""
     def whole(n):
         return not isinstance(n, bool) and isinstance(n, (int, np.integer)) and 16 <= n <= 16384
 
@@ -475,6 +477,7 @@ def check_texture(texture_size_px: int | tuple[int, int] | None, gutter_px: int 
         raise InputError(f"texture_size_px={texture_size_px!r} must be a whole number of texels from 16 to 16384, "
                          "or a (width, height) pair of them")
     if gutter_px is None:
+        _check_mip_gutter(mip_levels, limit, size)
         return size
     if isinstance(gutter_px, bool) or not isinstance(gutter_px, (int, np.integer)) \
             or not 0 <= gutter_px <= limit:
@@ -482,6 +485,38 @@ def check_texture(texture_size_px: int | tuple[int, int] | None, gutter_px: int 
         raise InputError(f"gutter_px={gutter_px!r} must be a whole number of texels from 0 to "
                          f"{limit} (an eighth of the texture{side})")
     return size
+
+
+def mip_room(mip_levels: int, need: int) -> int:
+    """The least texture side with room for a ``need``-texel gutter (eight times it) that ``mip_levels``
+    levels can halve evenly (a multiple of 2**(mip_levels-1))."""
+    q = 2 ** (int(mip_levels) - 1)
+    return -(-8 * need // q) * q
+
+
+def mip_levels_within(limit: int) -> int:
+    """The most mip levels whose gutter (uvbake.atlas.shapepack.mip_gutter_px) is at most ``limit`` texels
+    (0 when not even one level's is)."""
+    from uvbake.atlas.shapepack import mip_gutter_px
+
+    return max([k for k in range(1, 9) if mip_gutter_px(k) <= limit], default=0)
+
+
+def _check_mip_gutter(mip_levels, limit, size):
+    """The gutter mip_levels derives, held to the same eighth of the texture as a gutter_px given: an
+    atlas of gutters takes a long packing search to fail (bench/shapes.py's fingers, mip_levels=8 in
+    1024 px: a 545-texel gutter, 17 s of CPU before the packer gave up)."""
+    from uvbake.atlas.shapepack import mip_gutter_px
+
+    if isinstance(mip_levels, bool) or not isinstance(mip_levels, (int, np.integer)) or not 1 <= mip_levels <= 8:
+        return                                  # not a level count: uvbake.atlas.pack's check names it
+    need = mip_gutter_px(int(mip_levels))
+    if need > limit:
+        side = "'s shorter side" if isinstance(size, tuple) else ""
+        most = mip_levels_within(limit)
+        fewer = f"pass mip_levels={most} or fewer, or" if most else "pass"
+        raise InputError(f"mip_levels={mip_levels} needs a {need}-texel gutter, more than {limit} (an eighth of the "
+                         f"texture{side}); {fewer} a texture_size_px of at least {mip_room(mip_levels, need)}")
 
 
 def atlas_size(report: dict) -> int | tuple[int, int]:

@@ -212,6 +212,8 @@ def _check_atlas_args(args: argparse.Namespace) -> None:
         if args.gutter is not None and args.gutter < need:
             raise InputError(f"--gutter {args.gutter} is less than the {need} texels --mip-levels "
                              f"{args.mip_levels} needs; leave --gutter out or raise it")
+        if args.gutter is None and args.texture_size is not None:
+            _check_mip_room(args, need)
     if args.gutter is not None and args.texture_size is not None:
         short = min(args.texture_size) if isinstance(args.texture_size, tuple) else args.texture_size
         if args.gutter > short // 8:
@@ -221,6 +223,20 @@ def _check_atlas_args(args: argparse.Namespace) -> None:
             raise InputError(f"--gutter {args.gutter} must be at most {short // 8} "
                              f"(an eighth of --texture-size {size_text(args.texture_size)}{side})")
     check_texture(args.texture_size, args.gutter, args.texel_density)
+
+
+def _check_mip_room(args: argparse.Namespace, need: int) -> None:
+    """The gutter --mip-levels derives held to an eighth of --texture-size, as --gutter is."""
+    from uvbake.atlas.pipeline import mip_levels_within, mip_room, size_text
+
+    short = min(args.texture_size) if isinstance(args.texture_size, tuple) else args.texture_size
+    if need > short // 8:
+        most = mip_levels_within(short // 8)
+        side = "'s shorter side" if isinstance(args.texture_size, tuple) else ""
+        fewer = f"use --mip-levels {most} or fewer, or" if most else "use"
+        raise InputError(f"--mip-levels {args.mip_levels} needs a {need}-texel gutter, more than {short // 8} (an "
+                         f"eighth of --texture-size {size_text(args.texture_size)}{side}); {fewer} a "
+                         f"--texture-size of at least {mip_room(args.mip_levels, need)}")
 
 
 def _outputs(args: argparse.Namespace) -> _Outputs:
