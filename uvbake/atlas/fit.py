@@ -66,7 +66,7 @@ def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
 
 def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, coarse_px: int = 256,
               rel_tol: float = 4e-3, coarse_tol: float | None = None, fine_packs: int = 2, guess: float | None = None,
-              beat_guess: bool = False) -> ShapePacking | None:
+              beat_guess: bool = False, fine_side: int | None = None) -> ShapePacking | None:
     """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
 
     Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
@@ -74,7 +74,9 @@ def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, c
     the long side about ``coarse_px``, the short side at least 32; gutter ``ceil(gutter_px / c)`` coarse texels): a coarse packing
     scaled by ``c`` is a valid full-resolution packing (coarse footprints cover the fine ones, gutters
     and margins only grow), so it is the fallback; then at most ``fine_packs`` full-resolution trials
-    look for a larger density. ``guess`` (a density, e.g. a box packer's) starts the search; with
+    look for a larger density (on a raster ``f`` times coarser than the atlas, ``f`` the least power of two
+    making its long side at most ``fine_side``; None: the atlas's own). ``guess`` (a density, e.g. a box
+    packer's) starts the search; with
     ``beat_guess`` and no full-resolution trials, a first trial failing at ``guess`` ends it (None: the
     search would only find lower densities).
     Returns a ShapePacking at full resolution, or None if nothing fits.
@@ -110,11 +112,23 @@ def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, c
                 break
         else:
             return None
-    best = ShapePacking(density=lo * c, rotation=p.rotation, offset=p.offset * c, height_used=p.height_used * c)
-    if c == 1 or fine_packs == 0:
-        return best
-    s_lo, p = _search(packer, width, height, g, lo * c, best, top, lo * c * 1.03, fine_packs, rel_tol)
-    return p
+    f = 1 if fine_side is None else _fine_factor(width, height, fine_side)
+    if f >= c or fine_packs == 0:
+        return ShapePacking(density=lo * c, rotation=p.rotation, offset=p.offset * c, height_used=p.height_used * c)
+    k = c // f                                     # the coarse layout on the fine raster: scaled by k, still valid
+    best = ShapePacking(density=lo * k, rotation=p.rotation, offset=p.offset * k, height_used=p.height_used * k)
+    _, p = _search(packer, width // f, height // f, -(-g // f), lo * k, best, top / f, lo * k * 1.03, fine_packs,
+                   rel_tol)
+    return ShapePacking(density=p.density * f, rotation=p.rotation, offset=p.offset * f, height_used=p.height_used * f,
+                        complete=p.complete)
+
+
+def _fine_factor(width, height, side):
+    """The least power of two ``f`` with ``max(width, height) / f <= side``."""
+    f = 1
+    while max(width, height) // f > side:
+        f *= 2
+    return f
 
 
 def scale_to_border(packer: ShapePacker, p: ShapePacking, width: int, height: int, gutter_px: int, c: int = 1,

@@ -448,6 +448,12 @@ _MANY_COARSE_TOL = 0.04
 _BIG_MESH_FACES = 8192          # orders for any chart count, compaction at half resolution
 _COMPACT_FULL_FACES = 16384     # compaction at full resolution
 _COMPACT_CHARTS = 8
+# Work done "at full resolution" (fit_scale's last trial, the compaction) runs on a raster of at most _FINE_SIDE
+# texels a side, coarser than a larger atlas: its cost grows with the raster's area, not the charts'. At 16384
+# px terrain's compaction took 12.6 s, a 200-part kit's full-resolution trial 45 s. 2048 keeps every atlas
+# up to 2048 px as it was; larger atlases lose a point or two of efficiency to the coarser moves (terrain,
+# 12 charts, 4096 px: 59.5 -> 58.4 %) for a bounded cost (docs/decisions/pack.md).
+_FINE_SIDE = 2048
 _ORDERS_FROM = 4
 _ORDERS_UP_TO = 8
 
@@ -459,7 +465,8 @@ def _fit_free_scale(packer, W, H, g, guess):
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
     big = faces >= _BIG_MESH_FACES
     if n >= _FIT_SCALE_FROM:
-        p = fit_scale(packer, W, H, g, coarse_tol=_MANY_COARSE_TOL, fine_packs=1, guess=guess, beat_guess=guess is not None)
+        p = fit_scale(packer, W, H, g, coarse_tol=_MANY_COARSE_TOL, fine_packs=1, guess=guess, beat_guess=guess is not None,
+                      fine_side=_FINE_SIDE)
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
@@ -480,8 +487,16 @@ def _fit_free_scale(packer, W, H, g, guess):
                              f"or increase texture_size_px")
     p = q
     if big and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
-        p = _compacted(packer, p, W, H, g, 1 if faces >= _COMPACT_FULL_FACES else 2)
+        p = _compacted(packer, p, W, H, g, (1 if faces >= _COMPACT_FULL_FACES else 2) * _per_compact_texel(W, H))
     return p
+
+
+def _per_compact_texel(W, H):
+    """Atlas texels per compaction texel beyond the rule's own: a power of two keeping the compaction's
+    raster within _FINE_SIDE a side (its run tables cost as the atlas's area)."""
+    from uvbake.atlas.fit import _fine_factor
+
+    return _fine_factor(W, H, _FINE_SIDE)
 
 
 def _compacted(packer, p, W, H, g, c=1):
