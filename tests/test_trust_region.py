@@ -169,3 +169,32 @@ def test_a_solve_whose_energy_stalls_at_rounding_stops_instead_of_running_to_max
     assert _stalled(h)
     assert not _stalled(h[:-1])                                  # one iteration short of the window
     assert not _stalled(h[:-1] + [1.0 - 2 * STALL_RTOL])         # a decrease above rounding is progress
+
+
+def test_steps_cut_short_by_the_determinant_bound_never_grow_the_trust_radius(monkeypatch):
+    """A step the determinant bound shortens ends inside the trust region: the radius must not grow on
+    it. Grown at every such step (2x each), the radius of a solve pressed against folds for hundreds
+    of iterations overflowed (cow's parts at --max-charts 1: 1e154, then NaN steps and a crash)."""
+    from uvbake.flatten.solvers import trust
+
+    V, F = bumpy_disk(10, amp=0.5, seed=2)
+    Vn, _ = unit_scale(np.asarray(V, float), F)
+    E = DistortionEnergy(Vn, F, alpha=0.5)
+    start = initial_map(Vn, F, "lscm")
+    radii = []
+    real = trust.steihaug
+
+    def recorded(model, g, msolve, delta, eta):
+        radii.append(delta)
+        return real(model, g, msolve, delta, eta)
+
+    monkeypatch.setattr(trust, "steihaug", recorded)
+    x, res = trust.trust_region(E, E.to_vector(start), uv_fixed=start, max_iter=60, certificate=False,
+                                step_limit=lambda x, p: 0.5)             # every step cut to half
+    assert len(radii) > 10 and np.all(np.isfinite(x)) and res.converged
+    assert max(radii[1:]) <= radii[0] * (1 + 1e-12)                    # never above the first (it doubled before)
+    # a step that is not finite stops the solve at the last finite iterate instead of moving to NaN
+    monkeypatch.setattr(trust, "steihaug", lambda *a: (np.full(len(a[1]), np.nan), True, 1))
+    x0 = E.to_vector(initial_map(Vn, F, "lscm"))
+    x, res = trust.trust_region(E, x0, uv_fixed=start, max_iter=5, certificate=False)
+    assert np.array_equal(x, x0) and res.status == trust.Status.DAMPING_DIVERGED

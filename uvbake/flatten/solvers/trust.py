@@ -200,6 +200,18 @@ class _State:
         return True
 
 
+def _step(state, delta, step_limit):
+    """(step, whether it ends on the trust region's boundary, CG iterations); the step None when it is
+    not finite. A step cut short by the determinant bound ends inside the region, so it never grows the
+    radius (grown at every such step, cow's parts at --max-charts 1 reached a radius of 1e154, then NaN)."""
+    p, boundary, j = steihaug(state.model, state.g, state.msolve, delta, min(ETA_MAX, np.sqrt(state.gnorm)))
+    state.n_cg += j
+    if step_limit is not None:
+        lim = step_limit(state.x, p)
+        p, boundary = p * lim, boundary and lim >= 1.0
+    return (p if np.all(np.isfinite(p)) else None), boundary, j
+
+
 def _stalled(history):
     """Whether F fell by at most STALL_RTOL |F| over the last STALL iterations (rounding, not progress)."""
     return len(history) > STALL and history[-STALL - 1] - history[-1] <= STALL_RTOL * abs(history[-1])
@@ -281,10 +293,10 @@ def trust_region(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarr
             continue
         if delta is None:                          # first radius: the preconditioned steepest descent's
             delta = float(np.sqrt(max(s.g @ s.msolve(s.g), 0.0))) or 1.0
-        p, boundary, j = steihaug(s.model, s.g, s.msolve, delta, min(ETA_MAX, np.sqrt(s.gnorm)))
-        s.n_cg += j
-        if step_limit is not None:
-            p = p * step_limit(s.x, p)
+        p, boundary, j = _step(s, delta, step_limit)
+        if p is None:                              # the model or its solve broke down: stop, keep x
+            stop = Status.DAMPING_DIVERGED
+            break
         t, rho, k = _trial(s, p, s.zero_uv)
         s.n_eval += k
         delta = s.after_trial(delta, t, rho, boundary, p, j)
