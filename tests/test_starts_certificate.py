@@ -119,3 +119,8 @@ def test_a_certificate_past_its_lanczos_cap_says_not_checked_and_is_the_same_eve
     a, b = certify(E, uv), certify(E, uv)
     assert np.isnan(a.lambda_min) and a.is_local_minimum is None and a.vector is None
     assert np.isnan(b.lambda_min) and b.is_local_minimum is None
+    # a map that is not finite (a solve that broke down) is not checked rather than failing the run
+    bad = uv.copy()
+    bad[3] = np.nan
+    c = certify(E, bad)
+    assert np.isnan(c.lambda_min) and c.is_local_minimum is None and c.vector is None

@@ -113,8 +113,12 @@ def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "a
     :func:`~uvbake.flatten.solvers.linalg.make_solver` for H's pattern (the one LM or the trust region
     used: its symbolic analysis is reused) or None for a fresh one.
     """
+    if not np.all(np.isfinite(uv)):               # no map to test (a solve that broke down): not checked
+        return Certificate(float("nan"), None, 0, float("nan"), 0, None)
     if H is None:
         _, _, H = energy.evaluate(uv)
+    if not np.all(np.isfinite(H.data)):
+        return Certificate(float("nan"), None, 0, float("nan"), 0, None)
     N = gauge_basis(energy, uv)
     diag = H.diagonal()
     hmax = float(np.max(np.abs(diag))) if len(diag) else 1.0
@@ -145,7 +149,8 @@ def certify(energy: DistortionEnergy, uv: np.ndarray, *, linear_solver: str = "a
     v0 = np.random.default_rng(0).standard_normal(n)     # seeded: same input, same bytes
     try:
         mu, vec = spla.eigsh(op, k=1, which="LA", v0=v0, tol=LANCZOS_TOL, maxiter=LANCZOS_RESTARTS)
-    except spla.ArpackNoConvergence:                 # a work count, never a time: the same bytes every run
+    except spla.ArpackError:                         # no convergence in the work count (never a time: the
+        # same bytes every run), or no Lanczos basis at all
         return Certificate(float("nan"), None, N.shape[1], hmax, factorisations, None)
     lmin = float(1.0 / mu[0] - shift)
     v = vec[:, 0] / np.linalg.norm(vec[:, 0])
