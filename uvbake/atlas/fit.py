@@ -103,19 +103,29 @@ def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, c
             hi = s0
     lo, p = _search(packer, cw, ch, cg, lo, p, hi, start / c, 16, coarse_tol)
     if lo is None:                                 # halve until something fits (tiny atlas, big gutter)
-        s = 0.75 * top / c
-        for _ in range(30):
-            s *= 0.5
-            p = packer.pack(s, cw, None, cg)
-            if p is not None and p.height_used <= ch:
-                lo = s
-                break
-        else:
+        lo, p = _halved(packer, 0.75 * top / c, cw, ch, cg)
+        if lo is None:
             return None
     f = 1 if fine_side is None else _fine_factor(width, height, fine_side)
     if f >= c or fine_packs == 0:
         return ShapePacking(density=lo * c, rotation=p.rotation, offset=p.offset * c, height_used=p.height_used * c)
-    k = c // f                                     # the coarse layout on the fine raster: scaled by k, still valid
+    return _finer(packer, width, height, g, lo, p, c // f, f, top, fine_packs, rel_tol)
+
+
+def _halved(packer, s, width, height, g):
+    """(density, packing) of the first of s/2, s/4, ... (30 halvings at most) that fits; (None, None)."""
+    for _ in range(30):
+        s *= 0.5
+        p = packer.pack(s, width, None, g)
+        if p is not None and p.height_used <= height:
+            return s, p
+    return None, None
+
+
+def _finer(packer, width, height, g, lo, p, k, f, top, fine_packs, rel_tol):
+    """fit_scale's last trials, on a raster ``f`` times coarser than the atlas: from the coarse layout
+    ``p`` (density ``lo``, made ``k`` times coarser still), returned at the atlas's resolution."""
+    # the coarse layout on the fine raster: scaled by k, still valid
     best = ShapePacking(density=lo * k, rotation=p.rotation, offset=p.offset * k, height_used=p.height_used * k)
     _, p = _search(packer, width // f, height // f, -(-g // f), lo * k, best, top / f, lo * k * 1.03, fine_packs,
                    rel_tol)

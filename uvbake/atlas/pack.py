@@ -424,35 +424,18 @@ def _shape_angles(n, rects, rotate, few):
             for i, a in enumerate(angles)]
 
 
-# the free-scale shape search (docs/decisions/pack.md, releases 2c and 2e): from 64 charts fit_scale (full
-# resolution trials); below, one raster in strips of several widths (fit_width), 256 texels a side (512
-# on big meshes before: fandisk 60.7 -> 63.8 % and 2x faster with 256; a second search on 512, the denser
-# kept, gave camelhead and xatlas:beetle +0.6 points for 0.2 s, 3 % of camelhead's command, not kept).
-# Other chart orders for 5-8 charts, and from 5 charts on meshes of >= 8192 faces (each order costs a
-# placement of every chart; up to 4 charts already try 4 base angles, and orders added 0..+0.4 points
-# there at 40 % of the time; on cow, 5520 faces, 33 charts, they gain 2.5 points but double the packing,
-# 5 -> 10 % of its command). One round of widths: a second one under the best density (another raster)
-# took 30 % of the time for -0.2..+0.6 points. The layout is compacted (uvbake.atlas.compact) when there
-# are >= 8 charts, at full resolution on meshes of >= 16384 faces, at half resolution (moves of 2 texels)
-# from 8192 faces: it gains 0..+3 points on coarse layouts (fandisk, 14454 faces: +3.1 at full, +2.4 at
-# half resolution), but its fixed cost (run tables of the whole atlas: 0.1-0.15 s CPU at full
-# resolution even for 4 charts, about a third of it at half) is 5-10 % of the commands of fandisk and
-# smaller meshes; on the raster the layout was packed on nothing moves (bottom-left fill is tight there);
-# fit_scale's full-resolution layouts gain nothing (xatlas:camelhead: no chart moves). From 64 charts
-# fit_scale's coarse search stops at a 4 % bracket and one full-resolution trial follows (each trial
-# places every chart again; a packing's efficiency moves by +-2 points between densities 1 % apart, so a
-# finer search buys nothing on average: eight sets of 80-800 charts, mean 54.1 -> 54.0 %, packing CPU
-# 14.6 -> 8.8 s; docs/decisions/pack.md, seventh session).
+# The free-scale shape search: from _FIT_SCALE_FROM charts fit_scale (a coarse search to a _MANY_COARSE_TOL
+# bracket, then one finer trial); below, fit_width (one 256-texel raster in strips of several widths, other
+# chart orders for 5-8 charts and on big meshes); layouts of >= _COMPACT_CHARTS charts on big meshes compacted
+# (full resolution from _COMPACT_FULL_FACES faces, half from _BIG_MESH_FACES). The measurements behind each
+# constant: docs/decisions/pack.md ("The free-scale search's constants").
 _FIT_SCALE_FROM = 64
 _MANY_COARSE_TOL = 0.04
 _BIG_MESH_FACES = 8192          # orders for any chart count, compaction at half resolution
 _COMPACT_FULL_FACES = 16384     # compaction at full resolution
 _COMPACT_CHARTS = 8
-# Work done "at full resolution" (fit_scale's last trial, the compaction) runs on a raster of at most _FINE_SIDE
-# texels a side, coarser than a larger atlas: its cost grows with the raster's area, not the charts'. At 16384
-# px terrain's compaction took 12.6 s, a 200-part kit's full-resolution trial 45 s. 2048 keeps every atlas
-# up to 2048 px as it was; larger atlases lose a point or two of efficiency to the coarser moves (terrain,
-# 12 charts, 4096 px: 59.5 -> 58.4 %) for a bounded cost (docs/decisions/pack.md).
+# work done "at full resolution" (fit_scale's last trial, the compaction) runs on at most this many texels a
+# side, coarser than a larger atlas: its cost grows with the raster's area (docs/decisions/pack.md)
 _FINE_SIDE = 2048
 _ORDERS_FROM = 4
 _ORDERS_UP_TO = 8
