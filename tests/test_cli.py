@@ -83,6 +83,8 @@ def test_default_output_sits_beside_the_input(scene):
     (["{scene}", "--texture-size", "2048x1024x2"], "is not PX or WIDTHxHEIGHT"),
     (["{scene}", "--texture-size", "64x32", "--gutter", "5"], "an eighth of --texture-size 64x32's shorter side"),
     (["{scene}", "--gutter", "-2"], "--gutter"),
+    (["{scene}", "--max-stretch", "1"], "argument --max-stretch: 1 must be above 1.0"),
+    (["{scene}", "--max-charts", "0"], "argument --max-charts: 0 must be at least 1"),
     (["{scene}", "--mip-levels", "2", "--gutter", "4"], "--gutter 4 is less than the 10 texels --mip-levels 2"),
     (["{scene}", "--mip-levels", "0"], "--mip-levels 0"),
     (["{scene}", "--mip-levels", "6"], "--mip-levels 6 needs a 138-texel gutter, more than 128 (an eighth of "

@@ -114,11 +114,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the paper's formulation as is: charts from labels and disk cuts only, no distortion "
                         "budget, no injective solve (flips, overlaps and starved triangles are reported, not "
                         "removed) and no continuation from invalid starts")
-    g.add_argument("--max-stretch", type=float, default=None, metavar="S",
+    g.add_argument("--max-stretch", type=_typed(float, 1.0, open_lo=True), default=None, metavar="S",
                    help="distortion budget: every triangle keeps at least 1/S of its chart's texel density "
                         "(charts are cut before solving so they can; 1/S^2 after the solve) and its "
                         "angle distortion sigma1/sigma2 stays at most S^2; default 4")
-    g.add_argument("--max-charts", type=int, default=None, metavar="N",
+    g.add_argument("--max-charts", type=_typed(int, 1), default=None, metavar="N",
                    help="chart budget: stop cutting for the distortion budget at N charts (the guarantee's "
                         "splits may still add some)")
     g.add_argument("--weld", action="store_true",
