@@ -90,7 +90,9 @@ def test_default_output_sits_beside_the_input(scene):
     (["{scene}", "--mip-levels", "6"], "--mip-levels 6 needs a 138-texel gutter, more than 128 (an eighth of "
                                        "--texture-size 1024); use --mip-levels 5 or fewer, or a --texture-size of at least 1120"),
     (["{scene}", "--texel-density", "-5"], "--texel-density: -5 must be above 0"),
-    (["{scene}", "--texel-density", "5000", "--texture-size", "64"], "cannot fit texture_size_px=64"),
+    (["{scene}", "--texel-density", "5000", "--texture-size", "64"], "cannot fit --texture-size 64 at --texel-density 5000"),
+    (["{scene}", "--texture-size", "1004", "--mip-levels", "4"], "--texture-size 1004 is not a multiple of 8 (--mip-levels 4 "
+                                                                "halves it 3 times); pass a texture size divisible by 8"),
     (["{scene}", "--bake", "{tmp}/texture.jpg"], "must end in .png"),
     (["{scene}", "-o", "{tmp}/out.fbx"], "must end in .obj or .glb"),
     (["{scene}", "-o", "{scene}"], "is the input"),
@@ -136,3 +138,14 @@ def test_help_reads_well():
     assert proc.returncode == 0
     for word in ("--alpha", "--init", "--backend", "--json", "segment"):
         assert word in proc.stdout
+
+
+def test_library_errors_reach_the_command_line_in_flags():
+    # the library names its parameters; a command line user typed flags, so the one-line error says those
+    from uvbake.cli.common import cli_words
+
+    assert cli_words("the charts cannot fit a 16x16-texel atlas with gutter_px=4; reduce gutter_px or increase "
+                     "texture_size_px") == ("the charts cannot fit a 16x16-texel atlas with --gutter 4; reduce "
+                                            "--gutter or increase --texture-size")
+    assert cli_words("texture_size_px=(2048, 1020) is wrong, mip_levels=3") == "--texture-size 2048x1020 is wrong, --mip-levels 3"
+    assert cli_words("a gutter_pxs or my_texel_density stay") == "a gutter_pxs or my_texel_density stay"

@@ -155,8 +155,8 @@ def _check_gutter(gutter_px, mip_levels, W, H):
         K = _check_int_option(mip_levels, "mip_levels", 1, 8, "pass how many mip levels must not bleed, 1 to 8")
         need, q = mip_gutter_px(K), 2 ** (K - 1)
         if W is not None and (W % q or H % q):
-            raise InputError(f"texture_size_px={W if W == H else (W, H)} is not a multiple of 2**(mip_levels-1)="
-                             f"{q}; pass a texture size divisible by {q} or fewer mip_levels")
+            raise InputError(f"texture_size_px={W if W == H else (W, H)} is not a multiple of {q} (mip_levels={K} "
+                             f"halves it {K - 1} times); pass a texture size divisible by {q} or fewer mip_levels")
     if gutter_px is None:
         return 4 if need is None else need
     if isinstance(gutter_px, bool) or not isinstance(gutter_px, numbers.Integral):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import sys
 from collections.abc import Callable
@@ -37,6 +38,26 @@ class ArgumentParser(argparse.ArgumentParser):
         raise InputError(f"{message}; see `{self.prog} --help`")
 
 
+#: The Python parameters whose names the library's errors use, as the commands' flags.
+FLAGS = {"texture_size_px": "--texture-size", "gutter_px": "--gutter", "texel_density": "--texel-density",
+         "mip_levels": "--mip-levels", "max_stretch": "--max-stretch", "max_charts": "--max-charts",
+         "max_iter": "--max-iter", "timeout_per_asset_s": "--timeout-per-asset", "preview_size_px": "--preview-size"}
+_PARAM = re.compile(r"\b(" + "|".join(FLAGS) + r")\b(?:=(\((\d+), (\d+)\)|\[(\d+), (\d+)\]|[^\s,;:)]+))?")
+
+
+def cli_words(message: str) -> str:
+    """A library error in the words a command line user typed: ``texture_size_px=(2048, 1024)`` becomes
+    ``--texture-size 2048x1024``, ``gutter_px=4`` ``--gutter 4``, a bare ``gutter_px`` ``--gutter``."""
+    def flag(m: re.Match) -> str:
+        name, value = FLAGS[m.group(1)], m.group(2)
+        if value is None:
+            return name
+        pair = m.group(3) or m.group(5)
+        return f"{name} {pair}x{m.group(4) or m.group(6)}" if pair else f"{name} {value}"
+
+    return _PARAM.sub(flag, message)
+
+
 def exit_code(exc: BaseException) -> tuple[int, str]:
     """The exit status of an exception and the words that introduce its one-line message."""
     from uvbake import cancel
@@ -46,7 +67,7 @@ def exit_code(exc: BaseException) -> tuple[int, str]:
         signum = signum or signal.SIGINT
         return cancel.exit_code(signum), f"interrupted ({signal.Signals(signum).name}); no output was written"
     if isinstance(exc, InputError):
-        return EXIT_BAD_INPUT, f"error: {exc}"
+        return EXIT_BAD_INPUT, f"error: {cli_words(str(exc))}"
     if isinstance(exc, UvbakeError):
         return EXIT_FAILED, f"failed: {exc}"
     if isinstance(exc, OSError):
