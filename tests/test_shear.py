@@ -98,3 +98,31 @@ def test_the_guarantee_splits_until_nothing_is_bad_however_many_rounds_that_take
     res = uvbake.unwrap(_bench_shape("fingers"), alpha=0.5, max_charts=1, texture_size_px=256)
     assert res.report["valid"] and res.report["n_flipped_total"] == 0
     assert len(rounds) > 8 and rounds[-1] == 0          # ended because nothing was left to split
+
+
+def test_a_chart_whose_hole_image_runs_counter_clockwise_is_not_proven_overlap_free():
+    # every triangle positive and both boundary loops simple and disjoint, yet the hole's image runs
+    # counter-clockwise: the chart lies on both sides of it and covers the hole twice (a part of the cow
+    # at --max-charts 1 --max-stretch 100 that the boundary test passed, shipping 47 overlapping pairs)
+    from uvbake.atlas.guarantee import overlapping_pairs
+    from uvbake.mesh.graph import components
+    from uvbake.mesh.topology import boundary_edges
+    from uvbake.validate.boundary import proven_injective
+    from uvbake.validate.core import validate
+
+    d = np.load(Path(__file__).parent / "data" / "hole_covered_twice.npz")
+    V, F, uv = d["V"], d["F"], d["uv"]
+    e1, e2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
+    assert np.all(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] > 0)
+    seg = boundary_edges(F, len(uv))
+    nxt = np.zeros(len(uv), np.int64)
+    nxt[seg[:, 0]] = np.arange(len(seg))
+    loops, lab = components(len(seg), np.arange(len(seg)), nxt[seg[:, 1]])
+    P, Q = uv[seg[:, 0]], uv[seg[:, 1]]
+    area = np.bincount(lab, weights=P[:, 0] * Q[:, 1] - P[:, 1] * Q[:, 0])
+    assert loops == 2 and np.all(area > 0)                       # both loops counter-clockwise
+    assert not validate(uv[F], F, resolution_px=1024).valid      # it does overlap
+    assert not proven_injective([uv], [F])[0]
+    assert proven_injective([uv + 1e6, uv[F[:1]].reshape(3, 2)], [F, np.array([[0, 1, 2]])]).tolist() == [False, True]
+    chart = Chart(V, F, np.arange(len(V)), np.arange(len(F)))
+    assert len(overlapping_pairs([chart], [uv])[0]) > 0          # so the guarantee splits it
