@@ -220,3 +220,19 @@ def test_the_least_texture_a_mip_levels_error_names_is_the_least_accepted(levels
     with pytest.raises(uvbake.InputError, match="an eighth of the texture"):
         check_texture(size - 2 ** (levels - 1), None, None, levels)
     assert mip_levels_within(1024 // 8) == 5 and mip_gutter_px(6) > 1024 // 8 >= mip_gutter_px(5)
+
+
+def test_charts_that_no_packing_can_hold_are_refused_before_the_solve(monkeypatch):
+    # 100 separate triangles, 2 texels apart, in 16 x 16 texels: even as points they need more room
+    # (100 disks of radius 1 against (16 - 2 + 2)^2 texels); the run stops after charting, not after
+    # solving every chart and searching the packing
+    from uvbake.atlas import pipeline
+
+    rng = np.random.default_rng(0)
+    V = (rng.random((300, 3)) + np.repeat(np.arange(100), 3)[:, None] * 2.0)
+    F = np.arange(300).reshape(100, 3)
+    monkeypatch.setattr(pipeline, "_stage_solve", lambda run: (_ for _ in ()).throw(AssertionError("solved")))
+    with pytest.raises(uvbake.InputError, match="100 charts cannot fit a 16x16-texel atlas with gutter_px=2"):
+        unwrap((V, F), texture_size_px=16, gutter_px=2)
+    # a bound, never a guess: 4 charts in the same atlas pass it (and pack: tests/test_pack.py)
+    pipeline._check_room(4, dict(texture_size_px=16, texel_density=None, gutter_px=2, mip_levels=None, guarantee=True))
