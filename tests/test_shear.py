@@ -126,3 +126,20 @@ def test_a_chart_whose_hole_image_runs_counter_clockwise_is_not_proven_overlap_f
     assert proven_injective([uv + 1e6, uv[F[:1]].reshape(3, 2)], [F, np.array([[0, 1, 2]])]).tolist() == [False, True]
     chart = Chart(V, F, np.arange(len(V)), np.arange(len(F)))
     assert len(overlapping_pairs([chart], [uv])[0]) > 0          # so the guarantee splits it
+
+
+def test_distortion_splits_never_use_up_the_splits_an_overlap_needs():
+    # the same chart (it overlaps itself, and starves and shears under a tight budget, 1.05): with room
+    # for distortion splits it is split for distortion first; with that cap spent, still, for the overlap
+    from uvbake.atlas.guarantee import _split_bad_charts
+
+    d = np.load(Path(__file__).parent / "data" / "hole_covered_twice.npz")
+    chart = Chart(d["V"], d["F"], np.arange(len(d["V"])), np.arange(len(d["F"])))
+    result = type("R", (), {"uv": d["uv"]})()
+    for spent, reason in (({"distortion": 0, "validity": 0}, {"starved", "sheared"}),
+                          ({"distortion": 5, "validity": 0}, {"overlap"})):
+        splits = []
+        new = _split_bad_charts([chart], [result], [0], splits, 1.05, 5, spent)
+        assert len(new) == 1 and splits[0]["reason"] in reason
+    splits = []
+    assert _split_bad_charts([chart], [result], [0], splits, 1.05, 5, {"distortion": 5, "validity": 5}) == []

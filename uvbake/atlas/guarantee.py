@@ -475,11 +475,15 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     splits: list[dict] = []
     todo = list(range(len(charts)))
     rounds = 0
+    # each kind of split has its own cap: distortion (starved, sheared) never uses up validity (flips,
+    # overlaps): a rough scan at max_stretch 1.1 spent all 841 of one shared cap on shear and starvation
+    # and kept 73 overlapping pairs
+    spent = {"distortion": 0, "validity": 0}
     while max_rounds is None or rounds < max_rounds:   # rounds: each splits every bad chart once
         rounds += 1
-        if not todo or len(splits) >= max_splits:
+        if not todo or min(spent.values()) >= max_splits:
             break
-        new = _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits)
+        new = _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits, spent)
         if not new:
             break
         flat = [p for _, parts, _ in new for p in parts]
@@ -489,9 +493,11 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     return charts, results, splits
 
 
-def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits):
-    """Split each chart in ``todo`` that starves, flipped or overlaps itself, once (records appended
-    to ``splits``). Returns [(chart index, parts, their starts)]."""
+def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits, spent):
+    """Split each chart in ``todo`` that starves, shears, flipped or overlaps itself, once (records
+    appended to ``splits``; ``spent`` counts each kind's splits against ``max_splits``: past the
+    distortion cap only flipped or collapsed triangles are split off). Returns [(chart index, parts,
+    their starts)]."""
     some = [charts[i] for i in todo], [results[i].uv for i in todo]
     overlaps = overlapping_pairs(*some)
     # a chart whose least area factor is clearly above 1/max_stretch and no triangle sheared past
@@ -501,19 +507,24 @@ def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits):
     new = []
     for i, pairs, sure, shear in zip(todo, overlaps, fine, sheared):
         c = charts[i]
-        if len(c.F) < 2 or len(splits) >= max_splits:
+        if len(c.F) < 2:
             continue
         bad = np.zeros(0, np.int64) if sure else starved_or_flipped(c, results[i].uv, max_stretch)
-        if len(bad):
+        kind = "distortion"
+        if len(bad) and spent["distortion"] >= max_splits:
+            bad, kind, shear = bad[area_factors(c, results[i].uv)[bad] <= 0], "validity", False
+        if len(bad) and spent[kind] < max_splits:
             parts, pstarts, rec = split_bad(c, results[i].uv, bad)
             if shear:       # the parent's map would keep its shear (alpha near 1 barely weighs angles):
                 rec["reason"] = "sheared"                 # the parts start from their own conformal maps
                 fresh = _own_conformal_starts(parts, range(len(parts)))
                 pstarts = [fresh.get(k, st) for k, st in enumerate(pstarts)]
-        elif len(pairs):
+        elif len(pairs) and spent["validity"] < max_splits:
             parts, pstarts, rec = separating_split(c, results[i].uv, pairs)
+            kind = "validity"
         else:
             continue
+        spent[kind] += 1
         splits.append(rec)
         new.append((i, parts, pstarts))
     return new

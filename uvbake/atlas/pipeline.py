@@ -155,8 +155,9 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
     max_charts : int, optional
         Chart budget: charting stops cutting at this many charts (the guarantee's splits still happen).
     max_splits : int, optional
-        Cap on the guarantee's splits (default: one per chart entering the solve, at least 256); past
-        it the remaining invalid charts are reported, not hidden.
+        Cap on the guarantee's splits of each kind, distortion (starved, sheared) and validity (flips,
+        overlaps) (default: one per chart entering the solve, at least 256); past it the remaining
+        invalid charts are reported, not hidden.
     workers : int, optional
         Charts solved in parallel threads; the result does not depend on it.
     progress : callable, optional
