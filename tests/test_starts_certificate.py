@@ -124,3 +124,16 @@ def test_a_certificate_past_its_lanczos_cap_says_not_checked_and_is_the_same_eve
     bad[3] = np.nan
     c = certify(E, bad)
     assert np.isnan(c.lambda_min) and c.is_local_minimum is None and c.vector is None
+
+
+def test_a_chart_without_a_certificate_reports_null_not_nan():
+    # a program reading the JSON report needs standard JSON: no NaN where no lambda_min was found
+    import json
+
+    V, F = bumpy_disk(n=6)
+    r = uvbake.parameterize(V, F, alpha=0.5)
+    assert json.loads(json.dumps(r.to_dict()))["lambda_min"] == pytest.approx(r.lambda_min, rel=1e-12)
+    r.lambda_min, r.is_local_minimum = float("nan"), None
+    d = r.to_dict()
+    assert d["lambda_min"] is None and d["is_local_minimum"] is None
+    json.loads(json.dumps(d), parse_constant=lambda c: pytest.fail(f"{c} in the report"))

@@ -178,7 +178,8 @@ class ParamResult:
             "stop_reason": self.stop_reason,
             "n_flipped": int(self.n_flipped),
             "time_s": float(self.time_s),
-            "lambda_min": float(self.lambda_min),
+            # null where no certificate was found (standard JSON has no NaN)
+            "lambda_min": float(self.lambda_min) if np.isfinite(self.lambda_min) else None,
             "is_local_minimum": self.is_local_minimum,
             "history": [float(h) for h in self.history],
         }
