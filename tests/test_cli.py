@@ -149,3 +149,12 @@ def test_library_errors_reach_the_command_line_in_flags():
                                             "--gutter or increase --texture-size")
     assert cli_words("texture_size_px=(2048, 1020) is wrong, mip_levels=3") == "--texture-size 2048x1020 is wrong, --mip-levels 3"
     assert cli_words("a gutter_pxs or my_texel_density stay") == "a gutter_pxs or my_texel_density stay"
+
+
+def test_a_chart_budget_the_guarantee_could_not_keep_is_said(scene, capsys):
+    # scene.ply has 8 labels, so 8 charts at least: --max-charts 3 cannot be kept, and the run says so
+    assert main([str(scene), "--max-charts", "3"]) == 0
+    err = capsys.readouterr().err
+    assert "note: --max-charts 3 not kept: 8 charts (8 from charting); a valid atlas comes first" in err
+    assert main([str(scene), "--max-charts", "8"]) == 0
+    assert "not kept" not in capsys.readouterr().err

@@ -17,6 +17,7 @@ import argparse
 import json
 import sys
 import time
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -351,6 +352,13 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
           f"of {size_text(atlas_size(rep))} px at {atlas.get('texel_density', 0):.4g} px/unit, "
           f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written) or 'nothing written'}")
     print(f"uvbake: {certificate_summary(rep['charts'])}")
+    budget = rep["options"].get("max_charts")
+    if budget is not None and rep["charts_final"] > budget:
+        why = Counter(s["reason"] for s in rep["splits"] if s["reason"] != "packing")
+        split = ", ".join(f"{n} {reason}" for reason, n in sorted(why.items()))
+        print(f"uvbake: note: --max-charts {budget} not kept: {rep['charts_final']} charts ({rep['charts_input']} from "
+              f"charting" + (f"; split where charts {split}" if split else "") + "); a valid atlas comes first",
+              file=sys.stderr)
     for w in (rep.get("repair") or {}).get("warnings", []):
         print(f"uvbake: warning: {w}", file=sys.stderr)
     for c in rep["charts"]:
