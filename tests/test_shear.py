@@ -143,3 +143,26 @@ def test_distortion_splits_never_use_up_the_splits_an_overlap_needs():
         assert len(new) == 1 and splits[0]["reason"] in reason
     splits = []
     assert _split_bad_charts([chart], [result], [0], splits, 1.05, 5, {"distortion": 5, "validity": 5}) == []
+
+
+def test_a_collapsed_triangle_is_split_off_even_past_the_distortion_cap():
+    # an area factor of 1e-17 is a speck that rounding flips once the chart is placed in the atlas:
+    # a validity matter, split off like a flip when the distortion splits' cap is spent; a triangle
+    # merely starved (factor 0.01) is not, past that cap
+    from uvbake.atlas.guarantee import COLLAPSED, _split_bad_charts, area_factors
+
+    V, F = plane(6, 5, jitter=0.0)
+    chart = Chart(V, F, np.arange(len(V)), np.arange(len(F)))
+    for scale, split in ((1e-8, True), (0.1, False)):
+        uv = V[:, :2].copy()
+        t = 17
+        a, b, c = F[t]
+        # shrink triangle t towards its edge a-b, keeping it positive: its area factor becomes ~scale^2
+        mid = 0.5 * (uv[a] + uv[b])
+        uv[c] = mid + scale * (uv[c] - mid)
+        f = area_factors(chart, uv)
+        assert f.min() > 0 and (f.min() <= COLLAPSED) == split
+        splits = []
+        new = _split_bad_charts([chart], [type("R", (), {"uv": uv})()], [0], splits, 4.0, 3,
+                                {"distortion": 3, "validity": 0})
+        assert (len(new) == 1) == split

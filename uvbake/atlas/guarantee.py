@@ -164,6 +164,11 @@ def least_factors(charts: list[Chart], uvs: list) -> np.ndarray:
     return np.where(clear, least, -np.inf)
 
 
+#: Area factor at or below which a triangle counts as collapsed, a validity matter like a flip: split off
+#: even past the distortion splits' cap. Placed in the atlas, rounding flipped such a speck of a rough scan
+#: kept at --max-charts 1 (noise_5 %: one flipped triangle, five overlapping pairs; its factor 9e-17).
+COLLAPSED = 1e-6
+
 #: Largest share of a chart's area allowed below 1/max_stretch of its texel density after the solve.
 LOW_AREA_SHARE = 0.004
 
@@ -512,7 +517,7 @@ def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits, sp
         bad = np.zeros(0, np.int64) if sure else starved_or_flipped(c, results[i].uv, max_stretch)
         kind = "distortion"
         if len(bad) and spent["distortion"] >= max_splits:
-            bad, kind, shear = bad[area_factors(c, results[i].uv)[bad] <= 0], "validity", False
+            bad, kind, shear = bad[area_factors(c, results[i].uv)[bad] <= COLLAPSED], "validity", False
         if len(bad) and spent[kind] < max_splits:
             parts, pstarts, rec = split_bad(c, results[i].uv, bad)
             if shear:       # the parent's map would keep its shear (alpha near 1 barely weighs angles):
