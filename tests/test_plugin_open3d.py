@@ -156,6 +156,12 @@ def test_compute_uvatlas_keywords():
                        (dict(size=64, texture_size_px=128), "disagree"), (dict(nthreads=-1), "nthreads")):
         with pytest.raises(InputError, match=match):
             uvbake_open3d.unwrap(mesh, bake=None, **bad)
+    # uvbake's errors in the caller's keywords: here max_stretch is UVAtlas's, the budget distortion_budget
+    for bad, said in ((dict(distortion_budget=0.5), "distortion_budget=0.5 must be a number above 1"),
+                      (dict(size=512, gutter=200), "gutter=200 must be a whole number of texels from 0 to 64")):
+        with pytest.raises(InputError) as err:
+            uvbake_open3d.unwrap(mesh, bake=None, **bad)
+        assert said in str(err.value) and "max_stretch" not in str(err.value) and "gutter_px" not in str(err.value)
 
 
 def test_labels_lost_by_open3d_and_found_again(tmp_path):

@@ -4,6 +4,30 @@ Every message names the problem and the way out, in one line, so the CLI can pri
 """
 
 
+import re
+
+
+def in_words(message: str, names: dict[str, str], *, flags: bool = False) -> str:
+    """``message`` with the parameters it names (``names``' keys, whole words) called what the user
+    called them: other keywords (an adapter's ``size=512`` for ``texture_size_px=512``), or with
+    ``flags`` command line flags (``texture_size_px=(2048, 1024)`` -> ``--texture-size 2048x1024``)."""
+    if not names:
+        return message
+    pattern = re.compile(r"\b(" + "|".join(map(re.escape, names)) + r")\b"
+                         r"(?:=(\((\d+), (\d+)\)|\[(\d+), (\d+)\]|[^\s,;:)]+))?")
+
+    def swap(m: re.Match) -> str:
+        name, value = names[m.group(1)], m.group(2)
+        if value is None:
+            return name
+        if not flags:
+            return f"{name}={value}"
+        pair = m.group(3) or m.group(5)
+        return f"{name} {pair}x{m.group(4) or m.group(6)}" if pair else f"{name} {value}"
+
+    return pattern.sub(swap, message)
+
+
 class UvbakeError(Exception):
     """Base class of every error uvbake raises on purpose."""
 

@@ -76,7 +76,7 @@ def unwrap(mesh, *, size=None, gutter=None, max_stretch=None, parallel_partition
     import open3d as o3d
 
     from uvbake.atlas.pipeline import unwrap as _unwrap
-    from uvbake.errors import InputError
+    from uvbake.errors import InputError, in_words
 
     tensor = isinstance(mesh, o3d.t.geometry.TriangleMesh)
     if not tensor and not isinstance(mesh, o3d.geometry.TriangleMesh):
@@ -97,8 +97,15 @@ def unwrap(mesh, *, size=None, gutter=None, max_stretch=None, parallel_partition
     if bake == "auto":
         has_colors = ("colors" in mesh.vertex) if tensor else mesh.has_vertex_colors()
         bake = "vertex-colors" if has_colors else "checker"
-    result = _unwrap(mesh, alpha=alpha, texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake,
-                     face_labels=face_labels, **options)
+    # uvbake's errors name its own parameters; say what this caller typed (their max_stretch is UVAtlas's)
+    typed = {k: v for k, v, given in (("texture_size_px", "size", size), ("gutter_px", "gutter", gutter),
+                                      ("max_stretch", "distortion_budget", distortion_budget),
+                                      ("workers", "nthreads", nthreads)) if given is not None}
+    try:
+        result = _unwrap(mesh, alpha=alpha, texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake,
+                         face_labels=face_labels, **options)
+    except InputError as exc:
+        raise type(exc)(in_words(str(exc), typed)) from None
     if max_stretch is not None:
         result.report["options"]["max_stretch_open3d"] = float(max_stretch)
     out = to_open3d(result, like=mesh)

@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import signal
 import sys
 from collections.abc import Callable
 from typing import Any, NoReturn
 
-from uvbake.errors import InputError, UvbakeError
+from uvbake.errors import InputError, UvbakeError, in_words
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 2, 3, 130  # 143: SIGTERM
 
@@ -42,20 +41,12 @@ class ArgumentParser(argparse.ArgumentParser):
 FLAGS = {"texture_size_px": "--texture-size", "gutter_px": "--gutter", "texel_density": "--texel-density",
          "mip_levels": "--mip-levels", "max_stretch": "--max-stretch", "max_charts": "--max-charts",
          "max_iter": "--max-iter", "timeout_per_asset_s": "--timeout-per-asset", "preview_size_px": "--preview-size"}
-_PARAM = re.compile(r"\b(" + "|".join(FLAGS) + r")\b(?:=(\((\d+), (\d+)\)|\[(\d+), (\d+)\]|[^\s,;:)]+))?")
 
 
 def cli_words(message: str) -> str:
     """A library error in the words a command line user typed: ``texture_size_px=(2048, 1024)`` becomes
     ``--texture-size 2048x1024``, ``gutter_px=4`` ``--gutter 4``, a bare ``gutter_px`` ``--gutter``."""
-    def flag(m: re.Match) -> str:
-        name, value = FLAGS[m.group(1)], m.group(2)
-        if value is None:
-            return name
-        pair = m.group(3) or m.group(5)
-        return f"{name} {pair}x{m.group(4) or m.group(6)}" if pair else f"{name} {value}"
-
-    return _PARAM.sub(flag, message)
+    return in_words(message, FLAGS, flags=True)
 
 
 def exit_code(exc: BaseException) -> tuple[int, str]:
