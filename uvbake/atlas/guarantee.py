@@ -164,9 +164,9 @@ def least_factors(charts: list[Chart], uvs: list) -> np.ndarray:
     return np.where(clear, least, -np.inf)
 
 
-#: Area factor at or below which a triangle counts as collapsed, a validity matter like a flip: split off
-#: even past the distortion splits' cap. Placed in the atlas, rounding flipped such a speck of a rough scan
-#: kept at --max-charts 1 (noise_5 %: one flipped triangle, five overlapping pairs; its factor 9e-17).
+#: Area factor at or below which a triangle counts as collapsed, a validity matter like a flip (rounding
+#: can flip such a speck once its chart is placed in the atlas): split off even past the distortion
+#: splits' cap.
 COLLAPSED = 1e-6
 
 #: Largest share of a chart's area allowed below 1/max_stretch of its texel density after the solve.
@@ -467,9 +467,9 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     starves (or flipped because the start was not valid) is split once per bad region, overlapping
     sheets are split apart, and only the parts are solved again, from the parent's map. Rounds and
     splits are bounded by counts, never by time: every round splits at least one chart, so the
-    splits' cap ``max_splits`` bounds the rounds too (``max_rounds``, None: no other bound; a fixed 8
-    left bench/shapes.py's fingers with --max-charts 1 overlapping after its 8th round, one chart
-    still split in each of the last two). Only the charts that changed in a round are checked in the next.
+    splits' caps (``max_splits`` for each kind) bound the rounds too (``max_rounds``, None: no other
+    bound; docs/decisions/atlas.md, eighth session). Only the charts that changed in a round are
+    checked in the next.
 
     Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart."""
     note = note or (lambda stage, done, total: None)
@@ -481,8 +481,7 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     todo = list(range(len(charts)))
     rounds = 0
     # each kind of split has its own cap: distortion (starved, sheared) never uses up validity (flips,
-    # overlaps): a rough scan at max_stretch 1.1 spent all 841 of one shared cap on shear and starvation
-    # and kept 73 overlapping pairs
+    # collapsed triangles, overlaps)
     spent = {"distortion": 0, "validity": 0}
     while max_rounds is None or rounds < max_rounds:   # rounds: each splits every bad chart once
         rounds += 1
