@@ -203,7 +203,7 @@ class _State:
 def _step(state, delta, step_limit):
     """(step, whether it ends on the trust region's boundary, CG iterations); the step None when it is
     not finite. A step cut short by the determinant bound ends inside the region, so it never grows the
-    radius (grown at every such step, cow's parts at --max-charts 1 reached a radius of 1e154, then NaN)."""
+    radius (grown at every such step, a solve pressed against folds overflows it)."""
     p, boundary, j = steihaug(state.model, state.g, state.msolve, delta, min(ETA_MAX, np.sqrt(state.gnorm)))
     state.n_cg += j
     if step_limit is not None:
