@@ -130,6 +130,7 @@ def test_console_script_exits_nonzero_without_traceback(tmp_path):
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert "closed" in proc.stderr and "Traceback" not in proc.stderr
+    assert "leave --no-auto-cut out" in proc.stderr and "auto_cut" not in proc.stderr    # the flag typed
     assert not (tmp_path / "octa_uv.obj").exists()
 
 

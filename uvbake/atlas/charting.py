@@ -103,7 +103,7 @@ def _is_disk(c, auto_cut):
         if not ("closed" in str(exc) or "handle" in str(exc)):
             raise
         if not auto_cut:
-            raise ChartError(f"{exc} (or drop --no-auto-cut to let uvbake cut it)") from None
+            raise ChartError(f"{exc} (or leave auto_cut=False out to let uvbake cut it)") from None
     return False
 
 

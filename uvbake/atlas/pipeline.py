@@ -296,7 +296,7 @@ def _stage_load(run, source):
     if n_pieces > MAX_PIECES:
         raise InputError(f"{run.source_name}: the mesh is {n_pieces} separate pieces, which would be at least "
                          f"{n_pieces} charts; uvbake unwraps at most {MAX_PIECES} pieces (none is dropped "
-                         "silently); weld coincident vertices (weld=True, --weld), or remove the small pieces first")
+                         "silently); weld coincident vertices (weld=True), or remove the small pieces first")
 
 
 def _stage_charts(run):

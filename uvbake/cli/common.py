@@ -40,7 +40,8 @@ class ArgumentParser(argparse.ArgumentParser):
 #: The Python parameters whose names the library's errors use, as the commands' flags.
 FLAGS = {"texture_size_px": "--texture-size", "gutter_px": "--gutter", "texel_density": "--texel-density",
          "mip_levels": "--mip-levels", "max_stretch": "--max-stretch", "max_charts": "--max-charts",
-         "max_iter": "--max-iter", "timeout_per_asset_s": "--timeout-per-asset", "preview_size_px": "--preview-size"}
+         "max_iter": "--max-iter", "timeout_per_asset_s": "--timeout-per-asset", "preview_size_px": "--preview-size",
+         "auto_cut=False": "--no-auto-cut", "weld=True": "--weld"}
 
 
 def cli_words(message: str) -> str:
