@@ -7,7 +7,7 @@ from uvbake.atlas import fit
 from uvbake.atlas import pack as pack_module
 from uvbake.atlas.pack import pack_charts
 
-from test_pack import grid_chart, min_gap
+from test_pack import grid_chart, min_gap, signed_areas
 
 
 def _kit(n, seed=0):
@@ -55,3 +55,20 @@ def test_compaction_runs_on_at_most_a_2048_raster(monkeypatch, size, raster):
     res = pack_charts(uvs, faces, texture_size_px=size, gutter_px=4, method="shape")
     assert [args[2] for args in calls] == [raster]                   # the compaction raster's width
     assert min_gap([q * size for q in res.uv], faces) >= 4 * (1 - 1e-9)
+
+
+def test_a_large_growing_atlas_is_grown_on_a_coarser_raster_at_the_exact_density(monkeypatch):
+    # a fixed texel density that needs about 9,000 texels a side: grown on a raster 4 times coarser
+    # (at most 4096 a side), the layout scaled back; the density is the one asked, the sides keep the
+    # mip levels' quantum, the gutter is exact
+    uvs, faces = _kit(6, seed=2)
+    area = sum(float(np.abs(signed_areas(u, F)).sum()) for u, F in zip(uvs, faces))
+    density = 9000 / np.sqrt(area / 0.8)
+    grows = _spy(monkeypatch, fit, "grow_square")
+    res = pack_charts(uvs, faces, texture_size_px=None, texel_density=density, mip_levels=4)   # gutter 36
+    assert res.texel_density == density
+    assert res.width_px == res.height_px and res.width_px % 8 == 0 and res.width_px > 8000
+    (packer, g, d), = [args[:3] for args in grows]
+    assert res.gutter_px == 36 and g == 36 // 4 and d == density / 4   # the coarse raster's gutter, density
+    assert min_gap([q * res.width_px for q in res.uv], faces) >= 36 * (1 - 1e-9)
+    assert min(q.min() for q in res.uv) * res.width_px >= 18 * (1 - 1e-9) and max(q.max() for q in res.uv) <= 1
