@@ -297,6 +297,39 @@ def _width_trials(packer, width, height, g, c, cg, d0, w, packs, floor, order=No
     return best, best_w
 
 
+def grow_atlas(packer: ShapePacker, g: int, density: float, quantum: int, aspect: str,
+               grow_side: int) -> tuple[int, int, ShapePacking]:
+    """A growing atlas at a fixed ``density`` (sides multiples of ``quantum``; square, or with ``aspect``
+    "free" the rectangle of fewest texels): (W, H, ShapePacking). An atlas expected over ``grow_side``
+    texels a side is grown on a raster ``c`` times coarser (a power of two; gutter ceil(g / c), sides in
+    quanta of quantum / c): the layout scaled by ``c`` is valid, as fit_scale's coarse layouts are, and
+    the search costs as for an atlas of ``grow_side`` (docs/decisions/pack.md)."""
+    from uvbake.errors import InputError
+
+    side = np.sqrt(float(packer.area.sum()) / 0.8) * density
+    c = 1
+    while side / c > grow_side:
+        c *= 2
+    cg, cd, cq, top = -(-g // c), density / c, max(1, quantum // c), 16384 // c
+    if aspect == "free":
+        W, H, p = grow_rectangle(packer, cg, cd, quantum=cq, max_side=top)
+        if W is None:
+            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side; lower "
+                             f"texel_density")
+        return W * c, H * c, _scaled(p, c)
+    W, p = grow_square(packer, cg, cd, quantum=cq, max_side=top)
+    if W is None:
+        raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side ({p * c} at "
+                         f"least); lower texel_density")
+    return W * c, W * c, _scaled(p, c)
+
+
+def _scaled(p, c):
+    """The ShapePacking ``p`` made on a raster ``c`` times coarser, at the atlas's resolution."""
+    return p if c == 1 else ShapePacking(density=p.density * c, rotation=p.rotation, offset=p.offset * c,
+                                         height_used=p.height_used * c, complete=p.complete)
+
+
 def grow_square(packer: ShapePacker, gutter_px: int, density: float, *, quantum: int = 4,
                 max_side: int = 16384) -> tuple[int | None, Any]:
     """Smallest square side (a multiple of ``quantum``) whose strip holds every chart at ``density``.

@@ -498,34 +498,10 @@ def _compacted(packer, p, W, H, g, c=1):
 
 
 def _grow(packer, g, density, mip_levels, aspect):
-    """A growing atlas at a fixed ``density``: (W, H, ShapePacking). An atlas expected over _GROW_SIDE
-    texels a side is grown on a raster ``c`` times coarser (a power of two; gutter ceil(g / c), sides in
-    quanta of the atlas's quantum / c): the layout scaled by ``c`` is valid, as the free-scale search's
-    coarse layouts are, and the search costs as for an atlas of _GROW_SIDE (docs/decisions/pack.md)."""
-    from uvbake.atlas.fit import grow_rectangle, grow_square
+    """A growing atlas at a fixed ``density``: (W, H, ShapePacking) (uvbake.atlas.fit.grow_atlas)."""
+    from uvbake.atlas.fit import grow_atlas
 
-    quantum = max(4, 2 ** mip_levels)
-    side = np.sqrt(float(packer.area.sum()) / 0.8) * density
-    c = 1
-    while side / c > _GROW_SIDE:
-        c *= 2
-    cg, cd, cq, top = -(-g // c), density / c, max(1, quantum // c), 16384 // c
-    if aspect == "free":
-        W, H, p = grow_rectangle(packer, cg, cd, quantum=cq, max_side=top)
-        if W is None:
-            raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side; lower "
-                             f"texel_density")
-        return W * c, H * c, _scaled(p, c)
-    W, p = grow_square(packer, cg, cd, quantum=cq, max_side=top)
-    if W is None:
-        raise InputError(f"texel_density={density:g} needs a texture over 16384 texels a side ({p * c} at "
-                         f"least); lower texel_density")
-    return W * c, W * c, _scaled(p, c)
-
-
-def _scaled(p, c):
-    """The ShapePacking ``p`` made on a raster ``c`` times coarser, at the atlas's resolution."""
-    return p if c == 1 else replace(p, density=p.density * c, offset=p.offset * c, height_used=p.height_used * c)
+    return grow_atlas(packer, g, density, max(4, 2 ** mip_levels), aspect, _GROW_SIDE)
 
 
 def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, hulls=None):
