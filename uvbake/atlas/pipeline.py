@@ -249,8 +249,8 @@ def _unwrap(source, **opts):
 def _check_room(n, opts):
     """Refuse, before the solve, ``n`` charts that no packing of a fixed-size atlas can hold (the splits
     only add charts): shrunk to points, each chart holds a disk of radius g/2 of its own (charts are g
-    texels apart, ceil(g/2) from the border), inside the atlas grown by g/2 - ceil(g/2) a side. A
-    rough scan of 1,750 charts in 64 px took 43 s to fail in the packing."""
+    texels apart, ceil(g/2) from the border), inside the atlas grown by g/2 - ceil(g/2) a side
+    (docs/decisions/atlas.md, eighth session: such runs failed only in the packing, after every solve)."""
     from uvbake.atlas.pack import _check_gutter, _check_size
 
     if opts["texture_size_px"] is None or not opts["guarantee"]:
