@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.atlas.conformal import _frames, conformal_factor, conformal_factors
-from uvbake.atlas.opening import open_holes, slit
+from uvbake.atlas.opening import nearly_closed, open_holes, slit
 from uvbake.errors import ChartError, InputError
 from uvbake.mesh.arrays import dense_ranks, triangle_areas, unique_sorted, unit_normals
 from uvbake.mesh.charts import Chart, certified_disks, check_chart, split_charts
@@ -408,6 +408,12 @@ def _decide(st, chart, previous):
         st.starts.append(uv)
         return
     least = float(logf.min())
+    halves = _halves(chart) if nearly_closed(chart) else None
+    if halves is not None:                              # too many small holes to link: bisected like a sphere
+        st.budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=len(halves), nearly_closed=True,
+                                   least_factor=float(np.exp(least))))
+        st.queue.extend((p, None) for p in halves)
+        return
     holes = open_holes(chart)
     if holes is not None:                               # a tube or band: link its loops first (no new chart)
         st.budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=1, holes_linked=holes[2],
@@ -434,6 +440,18 @@ def _decide(st, chart, previous):
         else:                                           # within the budget on the parent's map: no solve
             st.done.append(p)
             st.starts.append(inherited)
+
+
+def _halves(chart):
+    """``chart`` cut in two like a closed piece (:func:`uvbake.mesh.cut.bisect`), or None when the
+    bisection finds no two valid sides (holes can leave a side meeting itself at a vertex)."""
+    from uvbake.mesh.cut import bisect
+
+    try:
+        lab = bisect(chart.V, chart.F)
+    except ChartError:
+        return None
+    return sub_charts(chart, lab, face_adjacency(chart.F, len(chart.V), return_halfedges=True))
 
 
 def _inherited_map(parent, uv, part, area, bound):

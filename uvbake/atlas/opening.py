@@ -2,6 +2,7 @@
 
     opened, seam = slit(chart, tips)          # shortest paths from protrusion tips to the boundary
     opened, seam, k = open_holes(chart)       # a disk with holes linked into one disk (a tube -> a strip)
+    nearly_closed(chart)                      # too many small holes to link: to be cut like a closed piece
 
 Both cut interior edges only, so the chart stays one piece; its vertices on a cut get one copy per side.
 The charting (:mod:`uvbake.atlas.charting`) decides when; seams follow :func:`uvbake.mesh.cut.seam_costs`.
@@ -91,7 +92,10 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     end exponentially, becomes a strip that flattens with little distortion, without a new chart.
     Loops are linked one at a time to the set already linked (the first loop), each by one shortest
     path, so the seams form a tree over the loops. Returns (chart, seam length, loops linked), or None
-    when the chart has one loop (or none, or more than MAX_OPENED_LOOPS) or is not a disk afterwards."""
+    when the chart has one loop (or none, or more than MAX_OPENED_LOOPS) or is not a disk afterwards.
+    A chart with more loops than MAX_OPENED_LOOPS has those spanning (_loop_spans) at least
+    LINKED_LOOP_SHARE of the largest one linked (the ends of a holey tube), its small holes left as
+    they are."""
     from scipy.sparse.csgraph import dijkstra
 
     from uvbake.mesh.topology import boundary_edges, topology
@@ -102,13 +106,19 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     if not len(b):
         return None
     _, loop = components(n, b[:, 0], b[:, 1])
-    on_loop = np.full(n, -1)
     verts = unique_sorted(b)
-    on_loop[verts] = loop[verts]
-    ids, loop_of = np.unique(on_loop[verts], return_inverse=True)
+    ids, loop_of = np.unique(loop[verts], return_inverse=True)
+    small = 0
+    if len(ids) > MAX_OPENED_LOOPS:                            # many holes: link the large loops only
+        spans = _loop_spans(V, b, np.searchsorted(ids, loop[b[:, 0]]), len(ids))
+        big = spans >= LINKED_LOOP_SHARE * spans.max()
+        small = len(ids) - int(big.sum())
+        keep = big[loop_of]
+        verts, loop_of, ids = verts[keep], (np.cumsum(big) - 1)[loop_of[keep]], ids[big]
     if not 2 <= len(ids) <= MAX_OPENED_LOOPS:
         return None
-    on_loop[verts] = loop_of                                   # loops numbered 0..k-1
+    on_loop = np.full(n, -1)
+    on_loop[verts] = loop_of                                   # loops numbered 0..k-1 (small holes: -1)
     e, hi, hj, length, g = _seam_graph(chart)
     linked = np.zeros(len(ids), bool)
     linked[0] = True
@@ -129,6 +139,48 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     cut = np.isin(e[:, 0] * n + e[:, 1], np.concatenate(cut_keys))
     opened = _opened(chart, cut, hi, hj)
     topo = topology(opened.F, len(opened.V))
-    if topo.n_components != 1 or topo.genus != 0 or topo.n_boundary_loops != 1:
+    if topo.n_components != 1 or topo.genus != 0 or topo.n_boundary_loops > 1 + small:
         return None
     return opened, float(length[cut].sum()), len(ids) - 1
+
+
+#: A chart with more boundary loops than open_holes links is cut like a closed piece when its holes
+#: (each bounded by the disk of its perimeter) cover at most this share of its area: a scan or a sphere
+#: with many small holes, whose conformal map blows one hole up into the outer boundary.
+NEARLY_CLOSED_SHARE = 0.05
+#: Of a chart with more boundary loops than MAX_OPENED_LOOPS, open_holes links the loops spanning at
+#: least this share of the largest loop's span (a quarter of its length): a holey tube's two ends, not
+#: a hole that a link to the boundary would tear open.
+LINKED_LOOP_SHARE = 1.0 / 16.0
+
+
+def _area(chart):
+    from uvbake.mesh.arrays import triangle_areas
+
+    return float(triangle_areas(chart.V, chart.F).sum())
+
+
+def _loop_spans(V, b, which, k):
+    """(k,) area each of ``k`` boundary loops may span (``which``: the loop of each boundary half-edge
+    ``b``): L^2 / (4 pi) for a loop of length L, the disk of its perimeter, which bounds the area of the
+    least surface filling it (the isoperimetric inequality; a loop's vector area would not: a tube's
+    two ends, opened into one loop, cancel)."""
+    length = np.bincount(which, weights=np.linalg.norm(V[b[:, 1]] - V[b[:, 0]], axis=1), minlength=k)
+    return length ** 2 / (4.0 * np.pi)
+
+
+def nearly_closed(chart: Chart) -> bool:
+    """Whether ``chart`` (a disk with holes) has more than MAX_OPENED_LOOPS boundary loops that together
+    span (_loop_spans) at most NEARLY_CLOSED_SHARE of its area: closed but for small holes."""
+    from uvbake.mesh.topology import boundary_edges
+
+    V, F = chart.V, chart.F
+    n = len(V)
+    b = boundary_edges(F, n)
+    if len(b) <= 3 * MAX_OPENED_LOOPS:                       # each loop has at least three edges
+        return False
+    _, loop = components(n, b[:, 0], b[:, 1])
+    ids, which = np.unique(loop[b[:, 0]], return_inverse=True)
+    if len(ids) <= MAX_OPENED_LOOPS:
+        return False
+    return bool(_loop_spans(V, b, which, len(ids)).sum() <= NEARLY_CLOSED_SHARE * _area(chart))
