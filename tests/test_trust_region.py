@@ -198,3 +198,35 @@ def test_steps_cut_short_by_the_determinant_bound_never_grow_the_trust_radius(mo
     x0 = E.to_vector(initial_map(Vn, F, "lscm"))
     x, res = trust.trust_region(E, x0, uv_fixed=start, max_iter=5, certificate=False)
     assert np.array_equal(x, x0) and res.status == trust.Status.DAMPING_DIVERGED
+
+
+def _slivered_disk(n=30, k=20, eps=1e-6, seed=0):
+    """bumpy_disk with ``k`` triangles split at a point ``eps`` off the midpoint of one edge: each leaves
+    a sliver of relative height about eps, as marching cubes and Poisson surfaces do."""
+    V, F = bumpy_disk(n)
+    V, F = np.asarray(V, float), np.asarray(F, np.int64)
+    pick = np.random.default_rng(seed).choice(len(F), k, replace=False)
+    a, b, c = F[pick].T
+    p = (1 - eps) * 0.5 * (V[a] + V[b]) + eps * V[c]
+    q = len(V) + np.arange(k)
+    split = np.stack([np.column_stack([a, b, q]), np.column_stack([b, c, q]), np.column_stack([c, a, q])], axis=1)
+    return np.concatenate([V, p]), np.concatenate([np.delete(F, pick, axis=0), split.reshape(-1, 3)])
+
+
+def test_slivers_do_not_set_the_preconditioners_shift(monkeypatch):
+    """mu regularises M on the gauge directions, against the scale of H's diagonal; a sliver's entries
+    (1/area) must not set that scale, else mu swamps every other triangle's curvature and CG stops at
+    MAX_CG on every step."""
+    from uvbake.flatten.solvers import trust
+
+    d = np.array([1.0, 2.0, 3.0, 4.0, 1e9])
+    assert trust._diagonal_scale(d) == pytest.approx(trust.SPREAD * 3.0, rel=1e-15)
+    assert trust._diagonal_scale(d[:4]) == 4.0                       # a well-shaped chart: the largest, as before
+    V, F = _slivered_disk()
+    r = parameterize(V, F, alpha=0.5, max_iter=300)
+    assert r.stop_reason in ("converged", "roundoff limited") and r.iterations <= 60 and r.n_flipped == 0
+    # the shift against the largest entry (the rule before): after 100 steps F is still 7e-5 above that
+    # minimum, its gradient 327 (against 0.07)
+    monkeypatch.setattr(trust, "SPREAD", np.inf)
+    slow = parameterize(V, F, alpha=0.5, max_iter=100)
+    assert slow.stop_reason == "max_iter" and slow.energy > r.energy * (1 + 1e-5) and slow.grad_norm > 100 * r.grad_norm
