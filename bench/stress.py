@@ -9,7 +9,12 @@ Built with trimesh and numpy (nothing read from disk, the same inputs on every m
 - ``heightfield``: a gently waving 300 x 300 vertex grid (178,802 triangles, one chart);
 - ``cow_x16``: the research cow subdivided twice (88,320 triangles; skipped without ../shared/meshes);
 - ``soup``: 600 separate random triangles (600 charts);
-- ``mobius``: a Moebius strip (not orientable).
+- ``mobius``: a Moebius strip (not orientable);
+- ``holes_60``: a 5,120-triangle sphere less 60 random triangles (a scan with small holes);
+- ``poisson_knot`` and ``bpa_knot``: what Open3D rebuilds from 20,000 points sampled on
+  ``bench/shapes.py``'s torus knot: a screened Poisson surface (depth 7, the 5 % least dense
+  vertices trimmed: slivers and open rims) and a ball-pivoting one (holes, many pieces). Open3D's
+  reconstruction is multithreaded and may differ in its last bits between machines.
 For each: in-process ``uvbake.unwrap((V, F), alpha=a)`` without a bake and ``xatlas.parametrize``,
 process CPU seconds, charts, validity, the least texel share and the area below a quarter of its
 fair share, and uvbake's stage times.
@@ -74,10 +79,40 @@ def _cow_x16():
     return np.asarray(t.vertices), np.asarray(t.faces)
 
 
+def _holey_sphere(k=60):
+    from trimesh import creation
+
+    s = creation.icosphere(subdivisions=4)
+    keep = np.ones(len(s.faces), bool)
+    keep[np.random.default_rng(7).choice(len(s.faces), k, replace=False)] = False
+    return np.asarray(s.vertices), np.asarray(s.faces)[keep]
+
+
+def _rebuilt(method, n=20000):
+    """Open3D's reconstruction of ``n`` points (with their normals) sampled on the torus knot."""
+    import open3d as o3d
+    import trimesh
+    from shapes import _torus_knot
+
+    knot = _torus_knot()
+    pts, face = trimesh.sample.sample_surface(knot, n, seed=0)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+    cloud.normals = o3d.utility.Vector3dVector(knot.face_normals[face])
+    if method == "poisson":
+        mesh, density = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=7)
+        density = np.asarray(density)
+        mesh.remove_vertices_by_mask(density < np.quantile(density, 0.05))
+    else:
+        d = float(np.mean(cloud.compute_nearest_neighbor_distance()))
+        mesh = o3d.geometry.TriangleMesh.create_from_point_cloud_ball_pivoting(cloud, o3d.utility.DoubleVector([1.5 * d, 3 * d]))
+    return np.asarray(mesh.vertices), np.asarray(mesh.triangles)
+
+
 def inputs():
     out = {f"noise_{s:g}%": (lambda s=s: _noisy_sphere(5, s / 100)) for s in (0.5, 1, 2, 5)}
     out.update(noise5_small=lambda: _noisy_sphere(4, 0.05), heightfield=_heightfield, cow_x16=_cow_x16,
-               soup=_soup, mobius=_mobius)
+               soup=_soup, mobius=_mobius, holes_60=_holey_sphere, poisson_knot=lambda: _rebuilt("poisson"),
+               bpa_knot=lambda: _rebuilt("bpa"))
     return out
 
 
@@ -115,7 +150,7 @@ def main(argv=None):
             t = time.process_time()
             r = uvbake.unwrap((V, F), alpha=a)
             cpu = time.process_time() - t
-            ok = validate(r.corner_uv, F, chart_ids=r.chart_ids, resolution_px=1024).valid
+            ok = validate(r.corner_uv, r.F, chart_ids=r.chart_ids, resolution_px=1024).valid      # the repaired faces
             stages = ", ".join(f"{k[:-2]} {v:.2f}" for k, v in r.report["timings"].items()
                                if k not in ("total_s", "bake_s"))
             print(f"| {name} | {len(F)} | {a:g} | {cpu:.2f} | {x_cpu:.2f} | {cpu / x_cpu:.1f} | "
