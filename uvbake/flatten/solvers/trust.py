@@ -55,10 +55,10 @@ STALL_RTOL = 1e-12
 
 def _diagonal_scale(d):
     """The scale of H's diagonal ``d`` that the shift mu is taken against: its largest entry, but at most
-    SPREAD times its median. A sliver's entries grow like 1/area: a reconstructed scan's few slivers made
-    the largest 1e5-1e8 times the median, and mu then swamped the other triangles' curvature in the
-    preconditioner, so CG stopped at MAX_CG on every step (a Poisson surface's 28k-triangle chart: F still
-    falling 0.1 % per step after 1000 steps)."""
+    SPREAD times its median. A sliver's entries grow like 1/area, so a reconstructed surface's few
+    slivers can make the largest entry many orders above the rest; mu then swamps the other triangles'
+    curvature in the preconditioner and CG stops at MAX_CG on every step (measured in
+    docs/decisions/atlas.md, ninth session)."""
     if not len(d):
         return 1.0
     return max(min(float(d.max()), SPREAD * float(np.median(d))), 1e-300)
