@@ -86,3 +86,21 @@ def test_a_tube_with_many_small_holes_has_only_its_ends_linked():
     # the charting: one chart (before only the ends were linked: nine, from slits, cuts and overlaps)
     charts, _, log = make_charts(V, F, max_stretch=4.0)
     assert len(charts) == 1 and [c.get("holes_linked") for c in log["budget_cuts"]] == [1]
+
+
+def test_of_many_comparable_loops_the_largest_are_linked():
+    """A tube with 20 holes of 3 x 3 cells, each over 1/16 of the ends' span: the ends and the largest
+    holes, MAX_OPENED_LOOPS loops in all, are linked and the rest stay holes (before: nothing was linked,
+    22 loops being more than open_holes links)."""
+    nu, nv = 32, 60
+    V, F = open_tube(nu=nu, nv=nv, radius=0.3, length=3.0)
+    cells = [(r, c) for r in (3, 11, 19, 27, 35, 43, 51) for c in (2, 10, 18)][:20]
+    drop = [h * (nv - 1) * nu + (r + i) * nu + c + j for r, c in cells for i in range(3) for j in range(3)
+            for h in (0, 1)]
+    F = np.delete(F, drop, axis=0)
+    loops = topology(F, len(V)).n_boundary_loops
+    assert loops == 22
+    opened, seam, linked = open_holes(_chart(V, F))
+    t = topology(opened.F, len(opened.V))
+    assert linked == MAX_OPENED_LOOPS - 1
+    assert (t.genus, t.n_components) == (0, 1) and t.n_boundary_loops <= loops - linked

@@ -93,9 +93,9 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     Loops are linked one at a time to the set already linked (the first loop), each by one shortest
     path, so the seams form a tree over the loops. Returns (chart, seam length, loops linked), or None
     when the chart has one loop (or none, or more than MAX_OPENED_LOOPS) or is not a disk afterwards.
-    A chart with more loops than MAX_OPENED_LOOPS has those spanning (_loop_spans) at least
-    LINKED_LOOP_SHARE of the largest one linked (the ends of a holey tube), its small holes left as
-    they are."""
+    A chart with more loops than MAX_OPENED_LOOPS has only its largest ones linked: those spanning
+    (_loop_spans) at least LINKED_LOOP_SHARE of the largest, at most MAX_OPENED_LOOPS of them (the
+    ends of a holey tube); its other holes are left as they are."""
     from scipy.sparse.csgraph import dijkstra
 
     from uvbake.mesh.topology import boundary_edges, topology
@@ -112,6 +112,7 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     if len(ids) > MAX_OPENED_LOOPS:                            # many holes: link the large loops only
         spans = _loop_spans(V, b, np.searchsorted(ids, loop[b[:, 0]]), len(ids))
         big = spans >= LINKED_LOOP_SHARE * spans.max()
+        big[np.argsort(-spans, kind="stable")[MAX_OPENED_LOOPS:]] = False     # the largest ones only
         small = len(ids) - int(big.sum())
         keep = big[loop_of]
         verts, loop_of, ids = verts[keep], (np.cumsum(big) - 1)[loop_of[keep]], ids[big]
