@@ -98,14 +98,13 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     ends of a holey tube); its other holes are left as they are."""
     from scipy.sparse.csgraph import dijkstra
 
-    from uvbake.mesh.topology import boundary_edges, topology
+    from uvbake.mesh.topology import topology
 
-    V, F = chart.V, chart.F
+    V = chart.V
     n = len(V)
-    b = boundary_edges(F, n)
+    b, loop = _boundary_loops(chart)
     if not len(b):
         return None
-    _, loop = components(n, b[:, 0], b[:, 1])
     verts = unique_sorted(b)
     ids, loop_of = np.unique(loop[verts], return_inverse=True)
     small = 0
@@ -173,15 +172,17 @@ def _loop_spans(V, b, which, k):
 def nearly_closed(chart: Chart) -> bool:
     """Whether ``chart`` (a disk with holes) has more than MAX_OPENED_LOOPS boundary loops that together
     span (_loop_spans) at most NEARLY_CLOSED_SHARE of its area: closed but for small holes."""
-    from uvbake.mesh.topology import boundary_edges
-
-    V, F = chart.V, chart.F
-    n = len(V)
-    b = boundary_edges(F, n)
-    if len(b) <= 3 * MAX_OPENED_LOOPS:                       # each loop has at least three edges
-        return False
-    _, loop = components(n, b[:, 0], b[:, 1])
+    b, loop = _boundary_loops(chart)
     ids, which = np.unique(loop[b[:, 0]], return_inverse=True)
     if len(ids) <= MAX_OPENED_LOOPS:
         return False
-    return bool(_loop_spans(V, b, which, len(ids)).sum() <= NEARLY_CLOSED_SHARE * _area(chart))
+    return bool(_loop_spans(chart.V, b, which, len(ids)).sum() <= NEARLY_CLOSED_SHARE * _area(chart))
+
+
+def _boundary_loops(chart):
+    """(boundary half-edges (b,2), each vertex's boundary-loop label (n,)) of ``chart``."""
+    from uvbake.mesh.topology import boundary_edges
+
+    n = len(chart.V)
+    b = boundary_edges(chart.F, n)
+    return b, components(n, b[:, 0], b[:, 1])[1]
