@@ -5,6 +5,7 @@
     python bench/pack.py --no-blender         # skip Blender (it needs /work/venvs/bpy or --bpy-python)
     python bench/pack.py --commands           # the whole uvbake command per mesh: packing's share of it
     python bench/pack.py --cli                # the same for the README's job run as users run it
+    python bench/pack.py --kits               # kits of 200-2000 small charts instead (bench/pack_charts.py)
 
 Chart sets (bench/pack_charts.py, cached): uvbake's own final charts on every mesh in ../shared/meshes and
 sample_scenes/, xatlas's charts (``xatlas.parametrize`` split into islands) on the same meshes, and a long
@@ -228,13 +229,14 @@ def main(argv=None):
     ap.add_argument("--bpy-python", default=str(BPY))
     ap.add_argument("--commands", action="store_true", help="time the whole uvbake command on every mesh instead")
     ap.add_argument("--cli", action="store_true", help="time the README's job (CLI with a checker bake) on every mesh")
+    ap.add_argument("--kits", action="store_true", help="kits of many small parts instead of the meshes")
     args = ap.parse_args(argv)
     if args.cli:
         return cli_commands(only=args.only.split(",") if args.only else None)
     if args.commands:
         return commands(only=args.only.split(",") if args.only else None)
     N, g = args.size, args.gutter
-    sets = chart_sets(args.only.split(",") if args.only else None)
+    sets = chart_sets(args.only.split(",") if args.only else None, kits=args.kits)
     blender = not args.no_blender and Path(args.bpy_python).exists()
     print(f"# texture {N} px, gutter {g} px; efficiency % / time s / min gap px; one run each")
     print("| charts from | mesh | charts | uvbake | xatlas | blender | uvbake atlas, method | share of command |")

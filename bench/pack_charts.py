@@ -6,7 +6,10 @@ under a hash of uvbake's sources, so they follow the code).
 - ``xatlas:<mesh>``: ``xatlas.parametrize``'s output split into islands by UV connectivity (xatlas
   duplicates vertices along its seams, so faces sharing an output vertex are one chart);
 - ``ribbon``: a long twisted strip (a 40 x 1 helicoid band, a quarter turn per unit length), one chart,
-  flattened by ``uvbake.parameterize``.
+  flattened by ``uvbake.parameterize``;
+- with ``kits=True`` instead: ``uvbake:kit<n>x<t>``, uvbake's charts of a kit of ``n`` separate closed
+  parts of ``t`` triangles (icospheres of random sizes, scattered; two charts each), the input of an
+  asset pipeline's many small parts, and ``xatlas:kit<n>x<t>``, xatlas's charts of the same kit.
 """
 
 from __future__ import annotations
@@ -25,6 +28,34 @@ CACHE = REPO / "bench" / ".cache" / "pack"
 def mesh_paths():
     paths = sorted(SHARED.glob("*.off")) if SHARED.exists() else []
     return paths + sorted((REPO / "sample_scenes").glob("*.ply"))
+
+
+#: the kits' parts: (number of parts, icosphere subdivisions: 0 is 20 triangles, 1 is 80)
+KITS = ((100, 1), (300, 0), (1000, 0))
+
+
+def kit_mesh(n, subdivisions, seed=0):
+    """(V, F) of ``n`` separate icospheres, sizes uniform in [0.2, 1], scattered in a 40-unit cube."""
+    import trimesh
+    from trimesh import creation
+
+    rng = np.random.default_rng(seed)
+    s = creation.icosphere(subdivisions=subdivisions)
+    parts = [trimesh.Trimesh(s.vertices * rng.uniform(0.2, 1.0) + rng.uniform(-20, 20, 3), s.faces, process=False)
+             for _ in range(n)]                                # one per part: building the input, not a hot path
+    m = trimesh.util.concatenate(parts)
+    return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
+
+
+def _kit_path(n, subdivisions):
+    """The kit written once as a PLY under the cache (xatlas_charts and uvbake_charts read paths)."""
+    import trimesh
+
+    f = CACHE / f"kit{n}x{20 * 4 ** subdivisions}.ply"
+    if not f.exists():
+        V, F = kit_mesh(n, subdivisions)
+        trimesh.Trimesh(V, F, process=False).export(f)
+    return f
 
 
 def ribbon(length=40.0, width=1.0, nu=400, nv=8, turns_per_unit=0.25):
@@ -113,11 +144,11 @@ def set_key(uvs, faces):
     return h.hexdigest()[:12]
 
 
-def chart_sets(names=None, log=sys.stderr):
-    """{name: (uvs, faces, info)}; computed once and cached."""
+def chart_sets(names=None, log=sys.stderr, kits=False):
+    """{name: (uvs, faces, info)}; computed once and cached (``kits``: the kit sets instead)."""
     CACHE.mkdir(parents=True, exist_ok=True)
-    makers = {"ribbon": ribbon_chart}
-    for p in mesh_paths():
+    makers = {} if kits else {"ribbon": ribbon_chart}
+    for p in [_kit_path(n, d) for n, d in KITS] if kits else mesh_paths():
         makers[f"uvbake:{p.stem}"] = lambda p=p: uvbake_charts(p)
         makers[f"xatlas:{p.stem}"] = lambda p=p: xatlas_charts(p)
     out = {}

@@ -43,6 +43,21 @@ def _coarse_factor(width, height, coarse_px):
     return c
 
 
+def resolving_coarse_px(packer: ShapePacker, width: int, height: int, coarse_px: int, small_texels: float) -> int:
+    """``coarse_px``, or twice that when the charts holding most of the area are small on that raster: the
+    area-weighted median chart, at the density filling the atlas, under ``small_texels`` coarse texels a
+    side. There the coarse footprints' rounding (a texel or two a side) is a large part of every chart,
+    so the coarse search settles on a density its full-resolution layout leaves far short of the top."""
+    a = packer.area
+    if a.sum() <= 0:
+        return coarse_px
+    side = np.sqrt(a * width * height / a.sum())              # texels a side at the density filling the atlas
+    order = np.argsort(side, kind="stable")
+    median = side[order][min(int(np.searchsorted(np.cumsum(a[order]), 0.5 * a.sum())), len(a) - 1)]
+    small = median / _coarse_factor(width, height, coarse_px) < small_texels
+    return 2 * coarse_px if small else coarse_px
+
+
 def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
     """Bracketed search for the largest feasible density: the height a trial needs steers the next one
     (at a fixed width the height grows like density^2), kept inside the bracket [lo, hi]."""

@@ -431,6 +431,8 @@ def _shape_angles(n, rects, rotate, few):
 # constant: docs/decisions/pack.md ("The free-scale search's constants").
 _FIT_SCALE_FROM = 64
 _MANY_COARSE_TOL = 0.04
+_MANY_COARSE_PX = 256
+_SMALL_CHART_TEXELS = 16          # (docs/decisions/pack.md, 2026-12-01, ninth session)
 _BIG_MESH_FACES = 8192          # orders for any chart count, compaction at half resolution
 _COMPACT_FULL_FACES = 16384     # compaction at full resolution
 _COMPACT_CHARTS = 8
@@ -450,8 +452,8 @@ def _fit_free_scale(packer, W, H, g, guess):
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
     big = faces >= _BIG_MESH_FACES
     if n >= _FIT_SCALE_FROM:
-        p = fit_scale(packer, W, H, g, coarse_tol=_MANY_COARSE_TOL, fine_packs=1, guess=guess, beat_guess=guess is not None,
-                      fine_side=_FINE_SIDE)
+        p = fit_scale(packer, W, H, g, coarse_px=_many_coarse_px(packer, W, H), coarse_tol=_MANY_COARSE_TOL,
+                      fine_packs=1, guess=guess, beat_guess=guess is not None, fine_side=_FINE_SIDE)
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
@@ -474,6 +476,13 @@ def _fit_free_scale(packer, W, H, g, guess):
     if big and _COMPACT_CHARTS <= n < _FIT_SCALE_FROM:
         p = _compacted(packer, p, W, H, g, (1 if faces >= _COMPACT_FULL_FACES else 2) * _per_compact_texel(W, H))
     return p
+
+
+def _many_coarse_px(packer, W, H):
+    """fit_scale's coarse raster for many charts (uvbake.atlas.fit.resolving_coarse_px)."""
+    from uvbake.atlas.fit import resolving_coarse_px
+
+    return resolving_coarse_px(packer, W, H, _MANY_COARSE_PX, _SMALL_CHART_TEXELS)
 
 
 def _per_compact_texel(W, H):
