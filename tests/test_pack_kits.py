@@ -30,8 +30,8 @@ def _coarse_px(uvs, faces, size=1024):
 
 def test_the_coarse_raster_is_finer_only_when_the_charts_holding_most_area_are_small():
     base = pack_module._MANY_COARSE_PX
-    assert _coarse_px(*_kit(600)) == 2 * base            # about 10 coarse texels a side: finer
-    assert _coarse_px(*_kit(250)) == base                 # about 16: as before
+    assert _coarse_px(*_kit(600)) == 2 * base            # about 12 coarse texels a side: finer
+    assert _coarse_px(*_kit(250)) == base                 # about 19: as before
     uvs, faces = _kit(600)
     big, F = _disc(40.0, 8, (-100.0, 0.0))                # one chart holding most of the area
     assert _coarse_px(uvs + [big], faces + [F]) == base
