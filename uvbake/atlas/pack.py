@@ -424,15 +424,17 @@ def _shape_angles(n, rects, rotate, few):
             for i, a in enumerate(angles)]
 
 
-# The free-scale shape search: from _FIT_SCALE_FROM charts fit_scale (a coarse search to a _MANY_COARSE_TOL
-# bracket, then one finer trial); below, fit_width (one 256-texel raster in strips of several widths, other
-# chart orders for 5-8 charts and on big meshes); layouts of >= _COMPACT_CHARTS charts on big meshes compacted
-# (full resolution from _COMPACT_FULL_FACES faces, half from _BIG_MESH_FACES). The measurements behind each
-# constant: docs/decisions/pack.md ("The free-scale search's constants").
+# The free-scale shape search: from _FIT_SCALE_FROM charts fit_scale (a coarse search on a _MANY_COARSE_PX
+# raster, twice that when the charts holding most area are under _SMALL_CHART_TEXELS coarse texels a side,
+# to a _MANY_COARSE_TOL bracket, then one finer trial); below, fit_width (one 256-texel raster in strips of
+# several widths, other chart orders for 5-8 charts and on big meshes); layouts of >= _COMPACT_CHARTS charts
+# on big meshes compacted (full resolution from _COMPACT_FULL_FACES faces, half from _BIG_MESH_FACES). The
+# measurements behind each constant: docs/decisions/pack.md ("The free-scale search's constants", and the
+# ninth session for the finer raster).
 _FIT_SCALE_FROM = 64
 _MANY_COARSE_TOL = 0.04
 _MANY_COARSE_PX = 256
-_SMALL_CHART_TEXELS = 16          # (docs/decisions/pack.md, 2026-12-01, ninth session)
+_SMALL_CHART_TEXELS = 16
 _BIG_MESH_FACES = 8192          # orders for any chart count, compaction at half resolution
 _COMPACT_FULL_FACES = 16384     # compaction at full resolution
 _COMPACT_CHARTS = 8
