@@ -321,6 +321,11 @@ class _Charting:
     solves: int = 0
     solved_triangles: int = 0        # triangles of every conformal solve (the stage's work count)
     solved: dict = dataclasses.field(default_factory=dict)   # id(chart) -> (chart, its conformal map), solved ahead
+    pinch_keys: np.ndarray | None = None   # per mesh vertex (uvbake.flatten.pinches), or None: no pinch
+
+    def keys(self, chart):
+        """The pinch keys of ``chart``'s vertices, or None."""
+        return None if self.pinch_keys is None else self.pinch_keys[chart.vertex_map]
 
     def chart_frames(self, chart):
         """(Q, area) of the chart's triangles: intrinsic to each triangle and its corner order, which
@@ -334,7 +339,8 @@ class _Charting:
         self.solved_triangles += len(chart.F)
         if id(chart) in self.solved:
             return self.solved.pop(id(chart))[1]
-        return conformal_factor(chart.V, chart.F, frames=self.chart_frames(chart) if frames is None else frames)
+        return conformal_factor(chart.V, chart.F, frames=self.chart_frames(chart) if frames is None else frames,
+                                keys=self.keys(chart))
 
     def solve_small_together(self, charts, at_least=None):
         """Solve the conformal maps of ``charts`` of at most BATCH_FACES triangles together, when there
@@ -349,7 +355,8 @@ class _Charting:
         for g in unique_sorted(group):                      # one per group of charts
             part = [c for c, k in zip(small, group) if k == g]
             fr = [self.chart_frames(c) for c in part]
-            for c, res in zip(part, conformal_factors([c.V for c in part], [c.F for c in part], fr)):
+            keys = None if self.pinch_keys is None else [self.keys(c) for c in part]
+            for c, res in zip(part, conformal_factors([c.V for c in part], [c.F for c in part], fr, keys)):
                 self.solved[id(c)] = (c, res)           # the chart held: its id stays its own
 
     def full(self):
@@ -358,8 +365,11 @@ class _Charting:
 
 def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
                 max_stretch: float = DEFAULT_MAX_STRETCH, max_charts: int | None = None, auto_cut: bool = True,
-                progress: Callable[[str, int, int], None] | None = None) -> tuple[list[Chart], list, dict]:
+                progress: Callable[[str, int, int], None] | None = None,
+                pinch_keys: np.ndarray | None = None) -> tuple[list[Chart], list, dict]:
     """Charts of (V, F) that flatten within the distortion budget, with their conformal start maps.
+    ``pinch_keys``: per vertex of V (:func:`uvbake.flatten.pinches.repair_copies`), or None: each
+    pinch of a chart is one vertex of its conformal maps.
 
     Returns
     -------
@@ -372,7 +382,8 @@ def make_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
     note = progress or (lambda stage, done, total: None)
     disks, cuts = disk_charts(V, F, labels, auto_cut=auto_cut, max_charts=max_charts, creases=True)
     st = _Charting(float(np.log(max_stretch)), max_charts, MAX_SOLVES_PER_CHART * len(disks),
-                   [(c, None) for c in disks], _frames(np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)))
+                   [(c, None) for c in disks], _frames(np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)),
+                   pinch_keys=pinch_keys)
     st.solve_small_together(disks)
     checked, rounds = 0, 0
     while True:                                         # rounds: conformal charts, then their overlaps

@@ -9,6 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
+from uvbake.flatten.pinches import pinch_representatives, welded
 from uvbake.mesh.arrays import pieces, unique_sorted
 
 #: The half-edge (0: 0->1, 1: 1->2, 2: 2->0) each entry of a triangle's row-major 3x3 block lies on;
@@ -30,10 +31,12 @@ def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | 
     return lscm_many([V], [F], [_frames(V, F) if frames is None else frames])[0]
 
 
-def lscm_many(Vs: list, Fs: list, frames: list) -> list:
+def lscm_many(Vs: list, Fs: list, frames: list, keys: list | None = None) -> list:
     """:func:`lscm` of several charts as one block-diagonal system, one factorisation: each chart's
     unknowns (its u's, then its v's) are a block of their own, with the entries, pins and right side
-    it has alone (a kit's hundred small parts paid a sparse assembly and a factorisation each)."""
+    it has alone (a kit's hundred small parts paid a sparse assembly and a factorisation each).
+    ``keys``: per chart, None or its vertices' pinch keys (:mod:`uvbake.flatten.pinches`): each
+    pinch is one vertex of the solve, and its copies get its UV."""
     from uvbake.mesh.topology import _edges
 
     k = len(Vs)
@@ -42,6 +45,19 @@ def lscm_many(Vs: list, Fs: list, frames: list) -> list:
     voff = np.cumsum(nv) - nv
     V = np.concatenate(Vs)
     F = np.concatenate(Fs) + np.repeat(voff, nf)[:, None]
+    cv = np.repeat(np.arange(k), nv)
+    ends = np.cumsum(nv)[:-1]
+    back, rep = None, None
+    edges = _edges(F, len(V), mask=True)
+    if keys is not None and any(kk is not None for kk in keys):
+        K = np.concatenate([np.full(len(V), -1) if kk is None else kk for V, kk in zip(Vs, keys)])
+        rep = pinch_representatives(K, F, cv, boundary=edges[2])
+    if rep is not None:                                  # each pinch's copies: one vertex for the solve
+        kept, F, back = welded(F, rep)
+        V, cv = V[kept], cv[kept]
+        nv = np.bincount(cv, minlength=k)
+        voff = np.cumsum(nv) - nv
+        edges = _edges(F, len(V), mask=True)
     n = len(V)
     Q = np.concatenate([f[0] for f in frames])
     area = np.concatenate([f[1] for f in frames])
@@ -57,11 +73,10 @@ def lscm_many(Vs: list, Fs: list, frames: list) -> list:
     # inside). Kept as stored zeros they double the u-v block's pattern and the factorisation's fill.
     # entry (k, l) of a triangle's 3x3 block lies on its edge k-l; the diagonal on no edge (unless a
     # triangle repeats a vertex: then the plain test below)
-    he, _, bnd, alone = _edges(F, n, mask=True)
+    he, _, bnd, alone = edges
     on = np.column_stack([alone.reshape(-1, 3), np.zeros(len(F), bool)])[:, _BLOCK_EDGE].reshape(-1)
     if (he[:, 0] == he[:, 1]).any():                     # a degenerate triangle: the plain test
         on = np.isin(np.minimum(r, c) * n + np.maximum(r, c), np.sort(bnd, axis=1) @ np.array([n, 1]))
-    cv = np.repeat(np.arange(k), nv)
     uid = voff[cv] + np.arange(n)                        # chart by chart: its u's, then its v's
     vid = uid + nv[cv]
     rows = np.concatenate([uid[r], vid[r], uid[r[on]], vid[c[on]]])
@@ -83,7 +98,7 @@ def lscm_many(Vs: list, Fs: list, frames: list) -> list:
     rhs = -np.bincount(ri[right], weights=data[right] * x[cols[right]], minlength=m)
     x[index >= 0] = _spd_solve_once(A, rhs)
     uv = np.stack([x[uid], x[vid]], axis=1)
-    return pieces(uv, np.cumsum(nv)[:-1])
+    return pieces(uv if back is None else uv[back], ends)
 
 
 def _farthest_pairs(V, bv, cv, k):
@@ -132,19 +147,21 @@ def _spd_solve_once(A, b):
                      options=dict(SymmetricMode=True)).solve(b)
 
 
-def conformal_factor(V: np.ndarray, F: np.ndarray, *,
-                     frames: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def conformal_factor(V: np.ndarray, F: np.ndarray, *, frames: tuple[np.ndarray, np.ndarray] | None = None,
+                     keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """LSCM map of a chart and each triangle's log area factor relative to the chart's mean.
 
     Returns (uv (n,2), logf (m,)): logf = log(UV area / 3D area) - log(total UV / total 3D), -inf where
-    the conformal map flips or collapses the triangle. ``frames`` as in :func:`lscm`."""
-    return conformal_factors([V], [F], [_frames(V, F) if frames is None else frames])[0]
+    the conformal map flips or collapses the triangle. ``frames`` as in :func:`lscm`, ``keys`` (pinch
+    keys) as in :func:`lscm_many`."""
+    frames = _frames(V, F) if frames is None else frames
+    return conformal_factors([V], [F], [frames], None if keys is None else [keys])[0]
 
 
-def conformal_factors(Vs: list, Fs: list, frames: list) -> list:
+def conformal_factors(Vs: list, Fs: list, frames: list, keys: list | None = None) -> list:
     """:func:`conformal_factor` of several charts, their maps solved together (:func:`lscm_many`)."""
     out = []
-    for F, uv, (_, a3) in zip(Fs, lscm_many(Vs, Fs, frames), frames):      # one per chart: its own sums
+    for F, uv, (_, a3) in zip(Fs, lscm_many(Vs, Fs, frames, keys), frames):      # one per chart: its own sums
         U = uv[F]
         e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
         a2 = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])

@@ -401,7 +401,7 @@ def _exact_overlaps(charts, uvs):
     return [pairs[owner == i] - first[i] for i in range(len(charts))]
 
 
-def _solve_flip_free(charts, starts, options, workers, progress):
+def _solve_flip_free(charts, starts, options, workers, progress, pinch_keys=None):
     """The paper's LM from each (valid) start; where that ends with flips, the injective LM from the
     same start instead. Measured (docs/decisions/atlas.md): the step bound alone stalls where the
     path to the minimum passes near a fold (fandisk's largest chart at alpha 0.5: stuck at F 18.37,
@@ -410,23 +410,27 @@ def _solve_flip_free(charts, starts, options, workers, progress):
 
     # checked: charting verified every chart a disk with holes (disk_charts), and cuts, joins and
     # splits keep that by construction, so the solver's own topology check is not repeated
-    results = parameterize_charts(charts, starts=starts, workers=workers, progress=progress, checked=True, **options)
+    def keys(some):                                   # each chart's pinch keys (uvbake.flatten.pinches)
+        return None if pinch_keys is None else [pinch_keys[c.vertex_map] for c in some]
+
+    results = parameterize_charts(charts, starts=starts, workers=workers, progress=progress, checked=True,
+                                  pinch_keys=keys(charts), **options)
     again = [i for i, r in enumerate(results) if r.n_flipped > 0 and starts[i] is not None]
     if again:
         # from the plain run's last flip-free iterate when it has one (nearer the minimum than the
         # start: beetle's redo 17 -> N iterations), else from the start
         resume = [starts[i] if results[i].flip_free_uv is None else results[i].flip_free_uv for i in again]
         redo = parameterize_charts([charts[i] for i in again], starts=resume, workers=workers,
-                                   injective=True, checked=True, **options)
+                                   injective=True, checked=True, pinch_keys=keys([charts[i] for i in again]), **options)
         for i, r in zip(again, redo):
             results[i] = r
     # a start flipped or collapsed itself (a part of a parent's map across its fold) leaves the LM no
     # valid path: such charts start again from their own conformal map when that has no flip (a single
     # triangle's always: a spiky sphere kept one-triangle charts flipped or collapsed to a point at alpha 0.1)
-    fresh = _own_conformal_starts(charts, [i for i, r in enumerate(results) if _broken_map(charts[i], r)])
+    fresh = _own_conformal_starts(charts, [i for i, r in enumerate(results) if _broken_map(charts[i], r)], pinch_keys)
     if fresh:
         redo = parameterize_charts([charts[i] for i in fresh], starts=list(fresh.values()), workers=workers,
-                                   injective=True, checked=True, **options)
+                                   injective=True, checked=True, pinch_keys=keys([charts[i] for i in fresh]), **options)
         for i, r in zip(fresh, redo):
             if not _broken_map(charts[i], r):
                 results[i] = r
@@ -441,16 +445,17 @@ def _broken_map(chart, result):
     return bool(result.n_flipped > 0 or not np.all(np.isfinite(uv)) or np.any(signed_areas(uv, chart.F) <= 0))
 
 
-def _own_conformal_starts(charts, indices):
+def _own_conformal_starts(charts, indices, pinch_keys=None):
     """{i: chart i's own conformal map} for the charts in ``indices`` whose conformal map has no flipped
-    or collapsed triangle."""
+    or collapsed triangle (each pinch one vertex, with ``pinch_keys`` per mesh vertex)."""
     from uvbake.atlas.conformal import conformal_factor
     from uvbake.cancel import check_cancelled
 
     out = {}
     for i in indices:                                 # one iteration per chart left flipped
         check_cancelled()                             # Ctrl-C / SIGTERM: stop between charts
-        uv, logf = conformal_factor(charts[i].V, charts[i].F)
+        uv, logf = conformal_factor(charts[i].V, charts[i].F,
+                                    keys=None if pinch_keys is None else pinch_keys[charts[i].vertex_map])
         if np.all(np.isfinite(logf)):
             out[i] = uv
     return out
@@ -462,7 +467,8 @@ MIN_SPLITS = 256
 
 def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *, max_stretch: float,
                 workers: int | None = None, max_splits: int | None = None, max_rounds: int | None = None,
-                note: Callable[[str, int, int], None] | None = None) -> tuple[list[Chart], list[ParamResult], list[dict]]:
+                note: Callable[[str, int, int], None] | None = None,
+                pinch_keys: np.ndarray | None = None) -> tuple[list[Chart], list[ParamResult], list[dict]]:
     """Solve every chart with the injective LM from its start, then check each chart once: what
     starves (or flipped because the start was not valid) is split once per bad region, overlapping
     sheets are split apart, and only the parts are solved again, from the parent's map. Rounds and
@@ -471,12 +477,14 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     bound; docs/decisions/atlas.md, eighth session). Only the charts that changed in a round are
     checked in the next.
 
-    Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart."""
+    Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart.
+    ``pinch_keys``: per mesh vertex (:func:`uvbake.flatten.pinches.repair_copies`), or None: every
+    solve and conformal map takes each pinch of a chart as one vertex."""
     note = note or (lambda stage, done, total: None)
     charts, starts = list(charts), list(starts)
     # one split per chart, at least MIN_SPLITS: a fixed cap left rough scans of many charts invalid
     max_splits = max(MIN_SPLITS, len(charts)) if max_splits is None else max_splits
-    results = _solve_flip_free(charts, starts, options, workers, lambda d, n, r: note("solve", d, n))
+    results = _solve_flip_free(charts, starts, options, workers, lambda d, n, r: note("solve", d, n), pinch_keys)
     splits: list[dict] = []
     todo = list(range(len(charts)))
     rounds = 0
@@ -487,17 +495,17 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
         rounds += 1
         if not todo or min(spent.values()) >= max_splits:
             break
-        new = _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits, spent)
+        new = _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits, spent, pinch_keys)
         if not new:
             break
         flat = [p for _, parts, _ in new for p in parts]
         flat_starts = [s for _, _, st in new for s in st]
-        solved = _solve_flip_free(flat, flat_starts, options, workers, lambda d, n, r: note("split", d, n))
+        solved = _solve_flip_free(flat, flat_starts, options, workers, lambda d, n, r: note("split", d, n), pinch_keys)
         charts, results, todo = _replace_split(charts, results, new, solved)
     return charts, results, splits
 
 
-def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits, spent):
+def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits, spent, pinch_keys=None):
     """Split each chart in ``todo`` that starves, shears, flipped or overlaps itself, once (records
     appended to ``splits``; ``spent`` counts each kind's splits against ``max_splits``: past the
     distortion cap only flipped or collapsed triangles are split off). Returns [(chart index, parts,
@@ -521,7 +529,7 @@ def _split_bad_charts(charts, results, todo, splits, max_stretch, max_splits, sp
             parts, pstarts, rec = split_bad(c, results[i].uv, bad)
             if shear:       # the parent's map would keep its shear (alpha near 1 barely weighs angles):
                 rec["reason"] = "sheared"                 # the parts start from their own conformal maps
-                fresh = _own_conformal_starts(parts, range(len(parts)))
+                fresh = _own_conformal_starts(parts, range(len(parts)), pinch_keys)
                 pstarts = [fresh.get(k, st) for k, st in enumerate(pstarts)]
         elif len(pairs) and spent["validity"] < max_splits:
             parts, pstarts, rec = separating_split(c, results[i].uv, pairs)

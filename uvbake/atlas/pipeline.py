@@ -202,6 +202,7 @@ class _Run:
     colors: np.ndarray | None = None
     source_name: object = None
     repair_report: dict | None = None
+    pinch_keys: np.ndarray | None = None   # copies repair made of one input vertex (uvbake.flatten.pinches)
     k: int = 0
     charts: list = field(default_factory=list)
     starts: list | None = None
@@ -286,7 +287,7 @@ def _per_iteration(note, callback, max_iter):
 def _stage_load(run, source):
     opts = run.opts
     t = time.perf_counter()
-    run.V, run.F, run.labels, run.colors, run.source_name, run.repair_report, run.k = _load(
+    run.V, run.F, run.labels, run.colors, run.source_name, run.repair_report, run.pinch_keys, run.k = _load(
         source, opts["face_labels"], opts["repair"], opts["weld"])
     if opts["bake"] == "vertex-colors" and run.colors is None:
         raise InputError(f"{run.source_name}: has no vertex colours to bake; use --bake-mode checker")
@@ -307,7 +308,7 @@ def _stage_charts(run):
 
         run.charts, run.starts, run.chart_log = make_charts(
             run.V, run.F, run.labels, max_stretch=opts["max_stretch"], max_charts=opts["max_charts"],
-            auto_cut=opts["auto_cut"], progress=run.note)
+            auto_cut=opts["auto_cut"], progress=run.note, pinch_keys=run.pinch_keys)
     else:
         from uvbake.atlas.charting import disk_charts
 
@@ -331,7 +332,7 @@ def _stage_solve(run):
         kwargs = dict(run.solve_kwargs, options=run.solve_options.replace(fill_holes=True))
         run.charts, run.results, run.splits = solve_valid(
             run.charts, run.starts, kwargs, max_stretch=opts["max_stretch"], workers=opts["workers"],
-            max_splits=opts["max_splits"], note=run.note)
+            max_splits=opts["max_splits"], note=run.note, pinch_keys=run.pinch_keys)
         for c, r in zip(run.charts, equalise_densities(run.charts, run.results)):
             snap_copies(c, r)
     else:
@@ -401,7 +402,8 @@ def _report(run, corner_uv, packed, verdict):
 
 
 def _load(source, face_labels, repair, weld):
-    """Load and (optionally) repair: V, F, labels, colours, the source's name and the repair report."""
+    """Load and (optionally) repair: V, F, labels, colours, the source's name, the repair report, the
+    pinch keys (:func:`uvbake.flatten.pinches.repair_copies`, or None) and the exponent of the scale."""
     from uvbake.io.load import load_mesh
     from uvbake.mesh.arrays import check_arrays
 
@@ -414,8 +416,9 @@ def _load(source, face_labels, repair, weld):
     k = unit_exponent(V)
     k = k if abs(k) > 64 else 0
     V = np.ldexp(V, -k) if k else V
-    repair_report = None
+    repair_report, pinch_keys = None, None
     if repair:
+        from uvbake.flatten.pinches import repair_copies
         from uvbake.mesh.repair import repair as repair_mesh
 
         rep = repair_mesh(V, F, weld=weld)
@@ -424,7 +427,8 @@ def _load(source, face_labels, repair, weld):
             labels = None if labels is None else labels[rep.face_index]
             colors = None if colors is None else colors[rep.vertex_index]
             V, F = rep.V, rep.F
-    return V, F, labels, colors, mesh.source, repair_report, k
+            pinch_keys = repair_copies(rep.vertex_index)
+    return V, F, labels, colors, mesh.source, repair_report, pinch_keys, k
 
 
 def _count_pieces(F, n_vertices, labels):

@@ -21,6 +21,7 @@ once around the whole map, and in worker processes by the executor's initializer
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -36,6 +37,7 @@ from uvbake.flatten.energy import DistortionEnergy, optimal_scale, scaled_start
 from uvbake.flatten.holes import chart_energy, with_hole_fans
 from uvbake.flatten.joint import joint_groups, solve_joint
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
+from uvbake.flatten.pinches import pinch_representatives, welded
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
 from uvbake.flatten.solvers.linalg import cholmod_available, make_solver
@@ -43,7 +45,7 @@ from uvbake.flatten.solvers.lm import levenberg_marquardt
 from uvbake.flatten.solvers.result import ParamResult, SolveResult
 from uvbake.flatten.solvers.trust import trust_region
 from uvbake.flatten.starts import farthest_boundary_pair, initial_map
-from uvbake.mesh.arrays import signed_areas, unit_scale
+from uvbake.mesh.arrays import signed_areas, unique_sorted, unit_scale
 from uvbake.mesh.charts import Chart, check_chart
 
 #: alphas of the continuation stages of an invalid start (measured: docs/decisions/solver.md)
@@ -322,6 +324,7 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
                         progress: Progress | None = None, starts: Sequence[np.ndarray | None] | None = None,
                         executor: Executor | None = None, options: SolveOptions | None = None,
                         callback: Callback | None = None, checked: bool = False,
+                        pinch_keys: Sequence[np.ndarray | None] | None = None,
                         **option_values: Any) -> list[ParamResult]:
     """Parameterize several charts independently, in parallel.
 
@@ -346,6 +349,10 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
         Passed to every solve (see :func:`parameterize`).
     checked : bool
         Every chart already passed :func:`uvbake.mesh.charts.check_chart` (see :func:`solve_chart`).
+    pinch_keys : list of ((k,) int array or None), optional
+        Per chart, its vertices' pinch keys (:mod:`uvbake.flatten.pinches`: equal non-negative keys
+        for copies of one input vertex a repair split): each pinch is solved as one vertex, and its
+        copies get its UV.
 
     Returns
     -------
@@ -356,6 +363,7 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
     elif option_values:
         options = options.replace(**option_values)
     items = [_chart_arrays(c, i) for i, c in enumerate(charts)]
+    items, starts, backs = _weld_pinches(items, starts, pinch_keys)
     if workers is not None and (not _whole(workers) or workers < 1):
         raise InputError(f"workers={workers!r} must be a positive integer (threads solving charts)")
     chosen = workers is not None
@@ -382,7 +390,49 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
             jobs.sort(key=lambda job: -sum(len(items[i][1]) for i in job))
             _run_pool([(job, (items, job, options, starts, callback, checked)) for job in jobs], executor, workers,
                       finish)
-    return [r for r in results if r is not None]
+    return _unwelded([r for r in results if r is not None], backs)
+
+
+def _weld_pinches(items: list[tuple[np.ndarray, np.ndarray, str]], starts: Sequence[np.ndarray | None] | None,
+                  keys: Sequence[np.ndarray | None] | None
+                  ) -> tuple[list[tuple[np.ndarray, np.ndarray, str]], Sequence | None, dict[int, np.ndarray]]:
+    """(items, starts, backs): the charts with each pinch welded (:mod:`uvbake.flatten.pinches`; found
+    for all charts at once, laid end to end), their starts on the kept vertices, and {chart: each
+    original vertex's index among its kept ones} for the charts that changed (``keys`` None: none)."""
+    if keys is None:
+        return items, starts, {}
+    if len(keys) != len(items):
+        raise InputError(f"pinch_keys has {len(keys)} entries for {len(items)} charts; pass one per chart (or None)")
+    if not items or all(k is None for k in keys):
+        return items, starts, {}
+    nv = np.array([len(V) for V, _, _ in items], np.int64)
+    off = np.cumsum(nv) - nv
+    K = np.concatenate([np.full(n, -1, np.int64) if k is None else np.asarray(k, dtype=np.int64)
+                        for n, k in zip(nv, keys)])
+    F = np.concatenate([np.asarray(F, dtype=np.int64) + o for (_, F, _), o in zip(items, off)])
+    group = np.repeat(np.arange(len(items)), nv)
+    rep = pinch_representatives(K, F, group)
+    if rep is None:
+        return items, starts, {}
+    items, starts = list(items), None if starts is None else list(starts)
+    backs: dict[int, np.ndarray] = {}
+    for i in unique_sorted(group[rep != np.arange(len(rep))]):     # one per chart with a pinch
+        Vi, Fi, name = items[i]
+        kept, Fw, backs[int(i)] = welded(np.asarray(Fi, dtype=np.int64), rep[off[i]:off[i] + nv[i]] - off[i])
+        items[i] = (np.asarray(Vi, dtype=np.float64)[kept], Fw, name)
+        if starts is not None and starts[i] is not None:
+            starts[i] = np.asarray(starts[i])[kept]
+    return items, starts, backs
+
+
+def _unwelded(results: list[ParamResult], backs: dict[int, np.ndarray]) -> list[ParamResult]:
+    """``results`` with those of charts solved with their pinches welded (``backs``, see
+    :func:`_weld_pinches`) on the charts' own vertices."""
+    out = list(results)
+    for i, back in backs.items():                   # one per chart with a pinch
+        ff = out[i].flip_free_uv
+        out[i] = dataclasses.replace(out[i], uv=out[i].uv[back], flip_free_uv=None if ff is None else ff[back])
+    return out
 
 
 def _jobs(items: list[tuple[np.ndarray, np.ndarray, str]], options: SolveOptions,

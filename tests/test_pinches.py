@@ -1,0 +1,82 @@
+"""Pinches (uvbake.flatten.pinches): copies repair made of one input vertex, welded for the solves."""
+
+import numpy as np
+
+import uvbake
+from uvbake.atlas.conformal import conformal_factor
+from uvbake.flatten.pinches import pinch_representatives, repair_copies
+from uvbake.mesh.repair import repair
+
+
+def _grid(n=7):
+    """An n x n grid of unit squares in the plane, two triangles each: (V, F, index of point (i, j))."""
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    x, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0), indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel(), 0.1 * np.sin(x.ravel()) * np.cos(y.ravel())])
+    F = []
+    for i in range(n):
+        for j in range(n):
+            a, b, c, d = idx[i, j], idx[i + 1, j], idx[i + 1, j + 1], idx[i, j + 1]
+            F.append(((i, j), [[a, b, c], [a, c, d]]))
+    return V, F, idx
+
+
+def _figure_eight():
+    """A grid with two diagonal squares removed: a hole whose border touches itself at point (3, 3),
+    a non-manifold vertex (two fans meet there) that repair splits into two copies."""
+    V, cells, idx = _grid()
+    F = np.array([t for (ij, tris) in cells if ij not in ((2, 2), (3, 3)) for t in tris])
+    return V, F, int(idx[3, 3])
+
+
+def test_repair_copies_keys_only_split_vertices():
+    keys = repair_copies(np.array([0, 1, 1, 2, 3, 3, 3]))
+    assert keys.tolist() == [-1, 1, 1, -1, 3, 3, 3]
+    assert repair_copies(np.arange(5)) is None
+
+
+def test_pinch_on_a_hole_is_welded_once():
+    V, F, pinch = _figure_eight()
+    rep = repair(V, F)
+    copies = np.flatnonzero(rep.vertex_index == pinch)
+    assert len(copies) == 2                             # repair split the bowtie vertex
+    keys = repair_copies(rep.vertex_index)
+    r = pinch_representatives(keys, rep.F)
+    assert r is not None
+    moved = np.flatnonzero(r != np.arange(len(r)))
+    assert moved.tolist() == [copies.max()] and r[copies.max()] == copies.min()
+
+
+def test_the_sides_of_a_cut_are_not_welded():
+    # two boundary edges whose ends carry the same keys are the two sides of a cut: left apart;
+    # the same copies without the twin edge are a pinch
+    V, cells, idx = _grid(4)
+    F = np.array([t for _, tris in cells for t in tris])
+    keys = np.full(len(V), -1)
+    keys[[idx[0, 0], idx[0, 4]]] = 7
+    keys[[idx[1, 0], idx[1, 4]]] = 8
+    assert pinch_representatives(keys, F) is None
+    keys[[idx[1, 0], idx[1, 4]]] = -1
+    r = pinch_representatives(keys, F)
+    assert r is not None and r[idx[0, 4]] == idx[0, 0] and np.sum(r != np.arange(len(r))) == 1
+
+
+def test_conformal_map_gives_the_copies_one_uv():
+    V, F, pinch = _figure_eight()
+    rep = repair(V, F)
+    copies = np.flatnonzero(rep.vertex_index == pinch)
+    keys = repair_copies(rep.vertex_index)
+    apart, _ = conformal_factor(rep.V, rep.F)
+    together, logf = conformal_factor(rep.V, rep.F, keys=keys)
+    assert np.ptp(together[copies], axis=0).max() == 0.0
+    assert np.ptp(apart[copies], axis=0).max() > 1e-6     # without the weld the copies move apart
+    assert np.all(np.isfinite(logf))                      # no triangle flips or collapses
+
+
+def test_unwrap_keeps_the_pinch_one_point_and_the_atlas_valid():
+    V, F, pinch = _figure_eight()
+    r = uvbake.unwrap((V, F), alpha=0.5)
+    assert r.report["valid"] and r.report["charts_final"] == 1
+    at = np.asarray(F) == pinch                          # the corners at the pinch, in the input's faces
+    uv = np.asarray(r.corner_uv)[at]
+    assert len(uv) == 2 and np.ptp(uv, axis=0).max() <= 1e-12    # one corner in each fan

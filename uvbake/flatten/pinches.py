@@ -1,0 +1,85 @@
+"""Pinches: a chart's boundary passing twice through one input vertex, held together for the solves.
+
+Repair splits a non-manifold vertex into one copy per fan (:mod:`uvbake.mesh.repair`). When two of
+those fans end up in one chart, the chart's boundary passes through the same point of the input
+twice: a pinch. The copies are separate vertices, so a free-boundary map (conformal or the paper's
+F) may move them apart and fold one fan over the other; the overlap check then cuts the chart in two.
+Ball-pivoting surfaces are full of pinches: Open3D's rebuilt knot of ``bench/stress.py`` has 453
+split vertices, and 198 of the 200 overlap splits it got came from charts holding two copies of one
+(a triangle of each overlapping pair touched a copied vertex).
+
+Here the copies of a pinch are welded for the solve: the map gives the point one UV, so the fans
+cannot drift apart and cross there, and the texture is continuous at it. The chart is unchanged
+(vertices, triangles, seams); only the solve sees the welded vertex, and every copy gets its UV.
+
+Which vertices are copies of one input vertex is the caller's knowledge, given as ``keys``: one
+integer per vertex, equal and non-negative for copies a repair made, negative otherwise. Vertices at
+the same position that the input itself kept apart are never welded (the input's own cuts stay cuts),
+nor are copies on a boundary edge that has a twin with the same keys (the two sides of a cut).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uvbake.mesh.arrays import unique_sorted
+from uvbake.mesh.topology import _edges
+
+
+def repair_copies(vertex_index: np.ndarray) -> np.ndarray | None:
+    """``keys`` of a repaired mesh: each vertex's input vertex where repair made several copies of it,
+    -1 elsewhere; None when repair copied no vertex (``vertex_index``: the repair's input vertex of
+    each output vertex)."""
+    vertex_index = np.asarray(vertex_index, dtype=np.int64)
+    copies = np.bincount(vertex_index)[vertex_index] > 1
+    return np.where(copies, vertex_index, -1) if copies.any() else None
+
+
+def pinch_representatives(keys: np.ndarray, F: np.ndarray, group: np.ndarray | None = None,
+                          boundary: np.ndarray | None = None) -> np.ndarray | None:
+    """Each vertex's representative (the lowest-index copy of its pinch, else itself), or None when
+    there is no pinch. A pinch: boundary vertices with the same non-negative key (and the same
+    ``group``, a vertex's chart when several are laid end to end), none of them on a boundary edge
+    whose keys repeat on another boundary edge (the sides of a cut). ``boundary``: the boundary
+    half-edges of F when the caller has them."""
+    keys = np.asarray(keys, dtype=np.int64)
+    n = len(keys)
+    bnd = _edges(F, n)[2] if boundary is None else boundary
+    bv = unique_sorted(bnd)
+    bv = bv[keys[bv] >= 0]
+    if len(bv) < 2:
+        return None
+    key = keys[bv] if group is None else np.column_stack([group[bv], keys[bv]])
+    order = np.lexsort(key.T[::-1]) if key.ndim == 2 else np.argsort(key, kind="stable")
+    k = key[order]
+    same = (k[1:] == k[:-1]).reshape(len(k) - 1, -1).all(axis=1)
+    if not same.any():
+        return None
+    cls = np.full(n, -1, np.int64)                     # a class per (group, key) of the boundary copies
+    cls[bv[order]] = np.concatenate([[0], np.cumsum(~same)])
+    # a boundary edge between copies whose classes repeat on another boundary edge: the sides of a cut
+    a, b = cls[bnd[:, 0]], cls[bnd[:, 1]]
+    both = (a >= 0) & (b >= 0)
+    ekey = np.minimum(a, b)[both] * (cls.max() + 1) + np.maximum(a, b)[both]
+    s = np.sort(ekey)
+    on_cut = np.isin(ekey, s[1:][s[1:] == s[:-1]])
+    size = np.bincount(cls[bv])
+    weld = (size[cls[bv]] > 1) & ~np.isin(cls[bv], np.concatenate([a[both][on_cut], b[both][on_cut]]))
+    if not weld.any():
+        return None
+    first = np.full(len(size), n, np.int64)
+    np.minimum.at(first, cls[bv[weld]], bv[weld])
+    rep = np.arange(n)
+    rep[bv[weld]] = first[cls[bv[weld]]]
+    return rep
+
+
+def welded(F: np.ndarray, rep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(kept, F', back): the vertices the welded mesh keeps (indices into the original ones, in
+    order), its triangles on them, and each original vertex's index among them (``uv[back]`` gives
+    every copy its pinch's UV)."""
+    kept = unique_sorted(rep)
+    index = np.full(len(rep), -1, np.int64)
+    index[kept] = np.arange(len(kept))
+    return kept, index[rep[F]], index[rep]
+
