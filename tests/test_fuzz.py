@@ -146,7 +146,7 @@ def defective_mesh(draw):
 def _defects(draw, V, F, rng):
     for defect in draw(st.lists(st.sampled_from(
             ["nan", "inf", "index", "negative", "repeat", "duplicate", "flip", "collapse", "scale", "piece",
-             "noise", "float_faces", "empty", "shape"]), max_size=3)):
+             "noise", "float_faces", "empty", "shape", "pinch"]), max_size=3)):
         m, n = len(F), len(V)
         i = draw(st.integers(0, max(m - 1, 0)))
         if defect == "nan" and n:
@@ -178,6 +178,10 @@ def _defects(draw, V, F, rng):
             F = F[:0]
         elif defect == "shape":
             V = V[:, :2]
+        elif defect == "pinch" and m and F.ndim == 2 and F.shape[1] == 3 and n > 1:
+            # two vertices made one: a non-manifold vertex (a pinch) when both were on the border
+            j, k = draw(st.integers(0, n - 1)), draw(st.integers(0, n - 1))
+            F = np.where(F == k, j, F)
     return V, F
 
 

@@ -1,6 +1,7 @@
 """Pinches (uvbake.flatten.pinches): copies repair made of one input vertex, welded for the solves."""
 
 import numpy as np
+import pytest
 
 import uvbake
 from uvbake.atlas.conformal import conformal_factor
@@ -80,3 +81,27 @@ def test_unwrap_keeps_the_pinch_one_point_and_the_atlas_valid():
     at = np.asarray(F) == pinch                          # the corners at the pinch, in the input's faces
     uv = np.asarray(r.corner_uv)[at]
     assert len(uv) == 2 and np.ptp(uv, axis=0).max() <= 1e-12    # one corner in each fan
+
+
+def _merged_border_vertices():
+    """A grid whose border vertices (0, 3) and (3, 0) are made one: a pinch on the outer border, the
+    merged vertex's two fans far apart along the surface."""
+    V, cells, idx = _grid()
+    F = np.array([t for _, tris in cells for t in tris])
+    return V, np.where(F == idx[3, 0], idx[0, 3], F), int(idx[0, 3])
+
+
+def _two_figure_eights():
+    """Two figure-eight holes (diagonal squares removed in pairs): two pinches in one chart."""
+    V, cells, idx = _grid(9)
+    F = np.array([t for (ij, tris) in cells if ij not in ((2, 2), (3, 3), (5, 5), (6, 6)) for t in tris])
+    return V, F, int(idx[3, 3])
+
+
+@pytest.mark.parametrize("make", [_figure_eight, _merged_border_vertices, _two_figure_eights])
+@pytest.mark.parametrize("alpha", [0.0, 0.5, 0.9])
+def test_pinched_meshes_unwrap_valid_with_every_triangle_its_texels(make, alpha):
+    V, F, _ = make()
+    r = uvbake.unwrap((V, F), alpha=alpha)
+    assert r.report["valid"], r.report["atlas"]["validation"]["summary"]
+    assert r.report["min_texel_share"] >= 1 / 16 and r.report["area_below_quarter"] <= 0.005
