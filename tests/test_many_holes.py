@@ -104,3 +104,26 @@ def test_of_many_comparable_loops_the_largest_are_linked():
     t = topology(opened.F, len(opened.V))
     assert linked == MAX_OPENED_LOOPS - 1
     assert (t.genus, t.n_components) == (0, 1) and t.n_boundary_loops <= loops - linked
+
+
+def test_a_slit_in_a_chart_with_a_hole_runs_to_the_outer_border_around_the_hole():
+    # a tip one diagonal from a hole's corner and four edges from the border: the slit goes to the
+    # border (a slit into the hole would have to open the hole; the conformal map keeps it small)
+    from uvbake.atlas.opening import slit
+    from uvbake.mesh.topology import boundary_edges
+
+    n = 8
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    x, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0), indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    F = np.array([t for i in range(n) for j in range(n) if (i, j) != (2, 2) for t in
+                  ([idx[i, j], idx[i + 1, j], idx[i + 1, j + 1]], [idx[i, j], idx[i + 1, j + 1], idx[i, j + 1]])])
+    chart = _chart(V, F)
+    hole = {int(idx[2, 2]), int(idx[3, 2]), int(idx[3, 3]), int(idx[2, 3])}
+    border = set(boundary_edges(F, len(V)).ravel().tolist()) - hole
+    opened, seam = slit(chart, np.array([idx[4, 4]]))
+    vm = opened.vertex_map
+    cut = set(np.unique(vm)[np.bincount(vm)[np.unique(vm)] > 1].tolist())     # mesh vertices with two copies
+    assert cut and not cut & hole and cut & border
+    assert seam == pytest.approx(4.0, abs=1e-12)                                 # the straight way out: 4 edges
+    assert topology(opened.F).n_boundary_loops == 2 and check_chart(opened.V, opened.F)

@@ -26,19 +26,32 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     a finger-like protrusion, which a conformal map shrinks exponentially towards its tip, becomes a
     strip that flattens with little distortion. The paths come from one shortest-path forest rooted on
     the boundary, so together they form no loop and the chart stays a disk with holes. Returns
-    (chart, seam length), or None when no tip is inside the chart."""
+    (chart, seam length), or None when no tip is inside the chart.
+
+    In a chart with holes the paths run to the outer border (the longest loop) and through no hole's
+    border, when every tip reaches it so: a slit ending at a small hole must open that hole to open at
+    all, and the conformal map keeps a hole small, so the slit's sides crossed instead (Open3D's
+    ball-pivoting knot: 107 of 119 slits ended at holes; docs/decisions/atlas.md, 2026-12-02)."""
     from scipy.sparse.csgraph import dijkstra
 
     from uvbake.mesh.topology import boundary_edges
 
     V, F = chart.V, chart.F
     n = len(V)
-    bnd = unique_sorted(boundary_edges(F, n))
+    b = boundary_edges(F, n)
+    bnd = unique_sorted(b)
     tips = np.setdiff1d(np.asarray(tips, dtype=np.int64), bnd)
     if len(tips) == 0:
         return None
     e, hi, hj, length, g = _seam_graph(chart)
-    dist, pred, src = dijkstra(g, directed=False, indices=bnd, min_only=True, return_predecessors=True)
+    dist = None
+    outer = _outer_border(V, b, n)
+    if outer is not None:                                # a chart with holes: to the outer border, around holes
+        dist, pred, src = dijkstra(_without(g, np.setdiff1d(bnd, outer)), directed=False, indices=outer,
+                                   min_only=True, return_predecessors=True)
+        dist = dist if np.all(np.isfinite(dist[tips])) else None
+    if dist is None:
+        dist, pred, src = dijkstra(g, directed=False, indices=bnd, min_only=True, return_predecessors=True)
     tips = tips[np.isfinite(dist[tips])]
     if len(tips) == 0:
         return None
@@ -52,6 +65,25 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     a = np.flatnonzero(on & (pred >= 0))
     cut = np.isin(e[:, 0] * n + e[:, 1], np.minimum(a, pred[a]) * n + np.maximum(a, pred[a]))
     return _opened(chart, cut, hi, hj), float(length[cut].sum())
+
+
+def _outer_border(V, b, n):
+    """The vertices of the longest boundary loop (boundary half-edges ``b``), or None when there is
+    one loop only."""
+    _, loop = components(n, b[:, 0], b[:, 1])
+    le = loop[b[:, 0]]
+    ids, which = np.unique(le, return_inverse=True)
+    if len(ids) < 2:
+        return None
+    length = np.bincount(which, weights=np.linalg.norm(V[b[:, 0]] - V[b[:, 1]], axis=1))
+    return unique_sorted(b[which == int(np.argmax(length))])
+
+
+def _without(g, vertices):
+    """The graph ``g`` (csr) without the edges at ``vertices``."""
+    c = g.tocoo()
+    keep = ~(np.isin(c.row, vertices) | np.isin(c.col, vertices))
+    return sp.csr_matrix((c.data[keep], (c.row[keep], c.col[keep])), shape=g.shape)
 
 
 def _seam_graph(chart: Chart) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, sp.csr_matrix]:
