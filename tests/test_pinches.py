@@ -1,5 +1,7 @@
 """Pinches (uvbake.flatten.pinches): copies repair made of one input vertex, welded for the solves."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -7,6 +9,8 @@ import uvbake
 from uvbake.atlas.conformal import conformal_factor
 from uvbake.flatten.pinches import pinch_representatives, repair_copies
 from uvbake.mesh.repair import repair
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _grid(n=7):
@@ -81,6 +85,14 @@ def test_unwrap_keeps_the_pinch_one_point_and_the_atlas_valid():
     at = np.asarray(F) == pinch                          # the corners at the pinch, in the input's faces
     uv = np.asarray(r.corner_uv)[at]
     assert len(uv) == 2 and np.ptp(uv, axis=0).max() <= 1e-12    # one corner in each fan
+    assert r.report["pinches_welded"] == 1
+
+
+def test_the_report_counts_each_welded_pinch_once():
+    V, F, _ = _two_figure_eights()
+    r = uvbake.unwrap((V, F), alpha=0.5)
+    assert r.report["charts_final"] == 1 and r.report["pinches_welded"] == 2
+    assert uvbake.unwrap(str(ROOT / "sample_scenes" / "sphere_cap.ply"), alpha=0.5).report["pinches_welded"] == 0
 
 
 def _merged_border_vertices():

@@ -380,6 +380,7 @@ def _report(run, corner_uv, packed, verdict):
         "budget_cuts": log["budget_cuts"],
         "over_budget": log["over_budget"],
         "splits": run.splits,
+        "pinches_welded": _pinches_welded(run),
         "seam_length_added": float(sum(c["seam_length"] for c in log["cuts"])
                                    + sum(c.get("seam_length", 0.0) for c in log["budget_cuts"])
                                    + sum(s["seam_length"] for s in run.splits)),
@@ -399,6 +400,16 @@ def _report(run, corner_uv, packed, verdict):
     if run.k:
         report["coordinate_exponent"] = run.k   # lengths and areas above are in units of 2**k
     return report
+
+
+def _pinches_welded(run):
+    """Points where the final charts hold several of repair's copies of one input vertex, solved as
+    one vertex (:mod:`uvbake.flatten.pinches`; 0 without the guarantee, which alone welds them)."""
+    if run.pinch_keys is None or not run.opts["guarantee"]:
+        return 0
+    from uvbake.flatten.pinches import pinch_count
+
+    return pinch_count([run.pinch_keys[c.vertex_map] for c in run.charts], [c.F for c in run.charts])
 
 
 def _load(source, face_labels, repair, weld):

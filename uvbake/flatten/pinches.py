@@ -83,3 +83,17 @@ def welded(F: np.ndarray, rep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     index[kept] = np.arange(len(kept))
     return kept, index[rep[F]], index[rep]
 
+
+
+def pinch_count(keys: list, Fs: list) -> int:
+    """Pinches over several charts (``keys``: per chart its vertices' pinch keys or None; ``Fs``: their
+    triangles): the points where copies of one input vertex are welded, each counted once."""
+    if all(k is None for k in keys):
+        return 0
+    nv = np.array([int(np.max(F)) + 1 if k is None else len(k) for k, F in zip(keys, Fs)], np.int64)
+    off = np.cumsum(nv) - nv
+    K = np.concatenate([np.full(n, -1, np.int64) if k is None else np.asarray(k, dtype=np.int64)
+                        for n, k in zip(nv, keys)])
+    F = np.concatenate([np.asarray(F, dtype=np.int64) + o for F, o in zip(Fs, off)])
+    rep = pinch_representatives(K, F, np.repeat(np.arange(len(Fs)), nv))
+    return 0 if rep is None else len(unique_sorted(rep[rep != np.arange(len(rep))]))
