@@ -45,7 +45,7 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
         return None
     e, hi, hj, length, g = _seam_graph(chart)
     dist = None
-    outer = _outer_border(V, b, n)
+    outer = _outer_border(V, b)
     if outer is not None:                                # a chart with holes: to the outer border, around holes
         dist, pred, src = dijkstra(_without(g, np.setdiff1d(bnd, outer)), directed=False, indices=outer,
                                    min_only=True, return_predecessors=True)
@@ -67,16 +67,13 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
     return _opened(chart, cut, hi, hj), float(length[cut].sum())
 
 
-def _outer_border(V, b, n):
+def _outer_border(V, b):
     """The vertices of the longest boundary loop (boundary half-edges ``b``), or None when there is
     one loop only."""
-    _, loop = components(n, b[:, 0], b[:, 1])
-    le = loop[b[:, 0]]
-    ids, which = np.unique(le, return_inverse=True)
-    if len(ids) < 2:
-        return None
-    length = np.bincount(which, weights=np.linalg.norm(V[b[:, 0]] - V[b[:, 1]], axis=1))
-    return unique_sorted(b[which == int(np.argmax(length))])
+    from uvbake.mesh.topology import boundary_loops
+
+    loop, length = boundary_loops(V, b)
+    return None if len(length) < 2 else unique_sorted(b[loop == int(np.argmax(length))])
 
 
 def _without(g, vertices):

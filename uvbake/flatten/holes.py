@@ -26,8 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from uvbake.mesh.arrays import signed_areas, triangle_areas, unique_sorted
-from uvbake.mesh.graph import components
-from uvbake.mesh.topology import _edges, boundary_edges
+from uvbake.mesh.topology import _edges, boundary_edges, boundary_loops
 
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
@@ -59,13 +58,10 @@ def hole_fans(V: np.ndarray, F: np.ndarray, start: np.ndarray) -> tuple[np.ndarr
     border = boundary_edges(F, n)                      # oriented as in their triangle: the chart on their left
     if len(border) == 0:
         return None
-    _, loop_of = components(n, border[:, 0], border[:, 1])
-    loop = loop_of[border[:, 0]]
-    ids, loop = np.unique(loop, return_inverse=True)
-    if len(ids) < 2:
+    loop, length = boundary_loops(V, border)
+    if len(length) < 2:
         return None
-    length = np.bincount(loop, weights=np.linalg.norm(V[border[:, 0]] - V[border[:, 1]], axis=1))
-    hole = np.ones(len(ids), bool)
+    hole = np.ones(len(length), bool)
     hole[int(np.argmax(length))] = False               # the outer border
     count = np.bincount(loop).astype(np.float64)
     centre = np.stack([np.bincount(loop, weights=V[border[:, 0], k]) for k in range(3)], axis=1) / count[:, None]
@@ -77,7 +73,7 @@ def hole_fans(V: np.ndarray, F: np.ndarray, start: np.ndarray) -> tuple[np.ndarr
     edges = np.linalg.norm(xyz[fans[:, [1, 2, 0]]] - xyz[fans], axis=2)
     quality = 4.0 * np.sqrt(3.0) * triangle_areas(xyz, fans) / np.maximum((edges ** 2).sum(axis=1), 1e-300)
     bad = (signed_areas(uv, fans) <= 0) | (quality < FAN_QUALITY)
-    hole &= np.bincount(loop, weights=bad, minlength=len(ids)) == 0
+    hole &= np.bincount(loop, weights=bad, minlength=len(length)) == 0
     if not hole.any():
         return None
     new = np.cumsum(hole) - 1                          # fan vertex index among the filled holes

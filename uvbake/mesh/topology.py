@@ -49,6 +49,15 @@ def boundary_edges(F: ArrayLike, n_vertices: int | None = None) -> np.ndarray:
     return _edges(F, int(F.max()) + 1 if n_vertices is None else n_vertices)[2]
 
 
+def boundary_loops(V: np.ndarray, border: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The loops of the boundary half-edges ``border`` (b,2) of a mesh on vertices V: (each half-edge's
+    loop, numbered 0..k-1 in the order of each loop's lowest vertex; each loop's 3D length (k,)). The
+    outer border of a disk with holes is its longest loop."""
+    _, lab = components(len(V), border[:, 0], border[:, 1])
+    _, loop = np.unique(lab[border[:, 0]], return_inverse=True)
+    return loop, np.bincount(loop, weights=np.linalg.norm(V[border[:, 0]] - V[border[:, 1]], axis=1))
+
+
 def topology(F: ArrayLike, n_vertices: int | None = None) -> Topology:
     """Edge counts, components, boundary loops and genus of a manifold triangle mesh."""
     F = np.asarray(F, dtype=np.int64)
