@@ -165,3 +165,19 @@ def test_charts_checked_together_are_certified_only_where_check_chart_accepts():
         # closed or with handles, and nothing else wrong: what the charting cuts without asking check_chart
         np.testing.assert_array_equal(cut, [cases[i][2] == "cut" for i in order])
         np.testing.assert_array_equal(certified_disks([charts[i] for i in order]), sure)
+
+
+def test_boundary_loops_label_each_loop_and_measure_it():
+    # a 5 x 5 grid of unit squares less its middle square: the border (20 long) and a hole (4 long)
+    from uvbake.mesh.topology import boundary_edges, boundary_loops
+
+    idx = np.arange(36).reshape(6, 6)
+    x, y = np.meshgrid(np.arange(6.0), np.arange(6.0), indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel(), np.zeros(36)])
+    F = np.array([t for i in range(5) for j in range(5) if (i, j) != (2, 2) for t in
+                  ([idx[i, j], idx[i + 1, j], idx[i + 1, j + 1]], [idx[i, j], idx[i + 1, j + 1], idx[i, j + 1]])])
+    b = boundary_edges(F, 36)
+    loop, length = boundary_loops(V, b)
+    assert length.tolist() == pytest.approx([20.0, 4.0], abs=1e-12)       # numbered by lowest vertex
+    hole = {int(idx[2, 2]), int(idx[3, 2]), int(idx[3, 3]), int(idx[2, 3])}
+    assert set(b[loop == 1].ravel().tolist()) == hole
