@@ -159,3 +159,19 @@ def test_a_chart_budget_the_guarantee_could_not_keep_is_said(scene, capsys):
     assert "note: --max-charts 3 not kept: 8 charts (8 from charting); a valid atlas comes first" in err
     assert main([str(scene), "--max-charts", "8"]) == 0
     assert "not kept" not in capsys.readouterr().err
+
+
+def test_summary_says_when_overlapping_charts_push_packing_past_100_percent(capsys):
+    # an invalid atlas (e.g. --paper) whose charts overlap counts shared texels more than once
+    from uvbake.cli.unwrap import _summary
+
+    rep = {"triangles": 10, "charts_final": 1, "charts_input": 1, "valid": False, "charts": [],
+           "atlas": {"texture_size_px": 1024, "efficiency": 2.406, "texel_density": 259.5},
+           "timings": {"cli_total_s": 1.0}, "options": {}, "splits": []}
+    _summary(rep, 0.5, [])
+    out = capsys.readouterr().out
+    assert "packing 240.6% of 1024 px (overlapping charts counted more than once)" in out
+    rep["atlas"]["efficiency"], rep["valid"] = 0.573, True
+    _summary(rep, 0.5, [])
+    out = capsys.readouterr().out
+    assert "packing 57.3% of 1024 px at" in out and "overlapping" not in out

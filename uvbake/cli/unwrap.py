@@ -346,10 +346,13 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
     from uvbake.atlas.pipeline import atlas_size, size_text
 
     atlas = rep["atlas"]
+    efficiency = atlas.get("efficiency", 0)
+    # charts that overlap (an atlas left invalid, e.g. --paper) count the texels they share more than once
+    twice = " (overlapping charts counted more than once)" if efficiency > 1 else ""
     print(f"uvbake: {rep['triangles']} triangles -> {rep['charts_final']} chart(s) "
           f"({rep['charts_input']} before cuts and splits), alpha {alpha}; "
-          f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * atlas.get('efficiency', 0):.1f}% "
-          f"of {size_text(atlas_size(rep))} px at {atlas.get('texel_density', 0):.4g} px/unit, "
+          f"atlas {'valid' if rep['valid'] else 'NOT valid'}, packing {100 * efficiency:.1f}% "
+          f"of {size_text(atlas_size(rep))} px{twice} at {atlas.get('texel_density', 0):.4g} px/unit, "
           f"{rep['timings']['cli_total_s']:.2f} s -> {', '.join(str(p) for p in written) or 'nothing written'}")
     print(f"uvbake: {certificate_summary(rep['charts'])}")
     budget = rep["options"].get("max_charts")
