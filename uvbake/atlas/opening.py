@@ -111,7 +111,7 @@ def _opened(chart: Chart, cut: np.ndarray, hi: np.ndarray, hj: np.ndarray) -> Ch
                  chart.label, chart.name)
 
 
-#: Charts with more boundary loops than this are not opened between their loops (open_holes).
+#: open_holes links at most this many loops (the largest); nearly_closed looks at charts with more.
 MAX_OPENED_LOOPS = 16
 
 
@@ -121,10 +121,13 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     end exponentially, becomes a strip that flattens with little distortion, without a new chart.
     Loops are linked one at a time to the set already linked (the first loop), each by one shortest
     path, so the seams form a tree over the loops. Returns (chart, seam length, loops linked), or None
-    when the chart has one loop (or none, or more than MAX_OPENED_LOOPS) or is not a disk afterwards.
-    A chart with more loops than MAX_OPENED_LOOPS has only its largest ones linked: those spanning
-    (_loop_spans) at least LINKED_LOOP_SHARE of the largest, at most MAX_OPENED_LOOPS of them (the
-    ends of a holey tube); its other holes are left as they are."""
+    when fewer than two loops qualify or the chart is not a disk afterwards.
+
+    Only the large loops are linked: those spanning (_loop_spans) at least LINKED_LOOP_SHARE of the
+    largest, at most MAX_OPENED_LOOPS of them (a tube's ends, a band's borders). A small hole stays a
+    hole (the solve fills it with light fans, :mod:`uvbake.flatten.holes`): linked, it was torn open
+    along a long seam, and the chart was cut anyway (halftunnel: links 7.95 long before, 3.94 now,
+    two charts either way; docs/decisions/atlas.md, 2026-12-02)."""
     from scipy.sparse.csgraph import dijkstra
 
     from uvbake.mesh.topology import topology
@@ -137,7 +140,7 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
     verts = unique_sorted(b)
     ids, loop_of = np.unique(loop[verts], return_inverse=True)
     small = 0
-    if len(ids) > MAX_OPENED_LOOPS:                            # many holes: link the large loops only
+    if len(ids) > 1:                                           # the large loops only: small holes stay holes
         spans = _loop_spans(V, b, np.searchsorted(ids, loop[b[:, 0]]), len(ids))
         big = spans >= LINKED_LOOP_SHARE * spans.max()
         big[np.argsort(-spans, kind="stable")[MAX_OPENED_LOOPS:]] = False     # the largest ones only
@@ -177,9 +180,8 @@ def open_holes(chart: Chart) -> tuple[Chart, float, int] | None:
 #: (each bounded by the disk of its perimeter) cover at most this share of its area: a scan or a sphere
 #: with many small holes, whose conformal map blows one hole up into the outer boundary.
 NEARLY_CLOSED_SHARE = 0.05
-#: Of a chart with more boundary loops than MAX_OPENED_LOOPS, open_holes links the loops spanning at
-#: least this share of the largest loop's span (a quarter of its length): a holey tube's two ends, not
-#: a hole that a link to the boundary would tear open.
+#: open_holes links only the loops spanning at least this share of the largest loop's span (a quarter
+#: of its length): a holey tube's two ends, not a hole that a link to the boundary would tear open.
 LINKED_LOOP_SHARE = 1.0 / 16.0
 
 
