@@ -127,3 +127,21 @@ def test_a_slit_in_a_chart_with_a_hole_runs_to_the_outer_border_around_the_hole(
     assert cut and not cut & hole and cut & border
     assert seam == pytest.approx(4.0, abs=1e-12)                                 # the straight way out: 4 edges
     assert topology(opened.F).n_boundary_loops == 2 and check_chart(opened.V, opened.F)
+
+
+@pytest.mark.parametrize("hole, linked", [({(3, 3)}, False), ({(i, j) for i in range(2, 6) for j in range(2, 6)}, True)])
+def test_open_holes_links_a_large_hole_and_leaves_a_small_one(hole, linked):
+    # an 8 x 8 grid less one square (a loop 4 long against the border's 32: it stays a hole) or less
+    # a 4 x 4 block (16 against 32: an annulus, linked to the border by one seam)
+    n = 8
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    x, y = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0), indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel(), 0.2 * np.sin(x.ravel())])
+    F = np.array([t for i in range(n) for j in range(n) if (i, j) not in hole for t in
+                  ([idx[i, j], idx[i + 1, j], idx[i + 1, j + 1]], [idx[i, j], idx[i + 1, j + 1], idx[i, j + 1]])])
+    out = open_holes(_chart(V, F))
+    if not linked:
+        assert out is None
+    else:
+        opened, seam, k = out
+        assert k == 1 and seam > 0 and topology(opened.F).n_boundary_loops == 1
