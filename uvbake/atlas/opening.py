@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from uvbake.mesh.arrays import unique_sorted
 from uvbake.mesh.charts import Chart
 from uvbake.mesh.graph import components
-from uvbake.mesh.topology import face_adjacency
+from uvbake.mesh.topology import boundary_loops, face_adjacency
 
 
 def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
@@ -70,8 +70,6 @@ def slit(chart: Chart, tips: np.ndarray) -> tuple[Chart, float] | None:
 def _outer_border(V, b):
     """The vertices of the longest boundary loop (boundary half-edges ``b``), or None when there is
     one loop only."""
-    from uvbake.mesh.topology import boundary_loops
-
     loop, length = boundary_loops(V, b)
     return None if len(length) < 2 else unique_sorted(b[loop == int(np.argmax(length))])
 

@@ -409,7 +409,8 @@ def _pinches_welded(run):
         return 0
     from uvbake.flatten.pinches import pinch_count
 
-    return pinch_count([run.pinch_keys[c.vertex_map] for c in run.charts], [c.F for c in run.charts])
+    return pinch_count([run.pinch_keys[c.vertex_map] for c in run.charts], [c.F for c in run.charts],
+                       [len(c.V) for c in run.charts])
 
 
 def _load(source, face_labels, repair, weld):

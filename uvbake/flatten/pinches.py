@@ -85,15 +85,22 @@ def welded(F: np.ndarray, rep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
 
 
 
-def pinch_count(keys: list, Fs: list) -> int:
-    """Pinches over several charts (``keys``: per chart its vertices' pinch keys or None; ``Fs``: their
-    triangles): the points where copies of one input vertex are welded, each counted once."""
-    if all(k is None for k in keys):
-        return 0
-    nv = np.array([int(np.max(F)) + 1 if k is None else len(k) for k, F in zip(keys, Fs)], np.int64)
+def pinches_end_to_end(keys: list, Fs: list, sizes: list) -> tuple[np.ndarray | None, np.ndarray]:
+    """:func:`pinch_representatives` of several charts laid end to end (``keys``: per chart its
+    vertices' pinch keys or None; ``Fs``: its triangles; ``sizes``: its vertex count): (representatives
+    over all their vertices, or None; each chart's first vertex in that numbering)."""
+    nv = np.asarray(sizes, dtype=np.int64)
     off = np.cumsum(nv) - nv
+    if all(k is None for k in keys):
+        return None, off
     K = np.concatenate([np.full(n, -1, np.int64) if k is None else np.asarray(k, dtype=np.int64)
                         for n, k in zip(nv, keys)])
     F = np.concatenate([np.asarray(F, dtype=np.int64) + o for F, o in zip(Fs, off)])
-    rep = pinch_representatives(K, F, np.repeat(np.arange(len(Fs)), nv))
+    return pinch_representatives(K, F, np.repeat(np.arange(len(Fs)), nv)), off
+
+
+def pinch_count(keys: list, Fs: list, sizes: list) -> int:
+    """Pinches over several charts (as in :func:`pinches_end_to_end`): the points where copies of one
+    input vertex are welded, each counted once."""
+    rep, _ = pinches_end_to_end(keys, Fs, sizes)
     return 0 if rep is None else len(unique_sorted(rep[rep != np.arange(len(rep))]))

@@ -37,7 +37,7 @@ from uvbake.flatten.energy import DistortionEnergy, optimal_scale, scaled_start
 from uvbake.flatten.holes import chart_energy, with_hole_fans
 from uvbake.flatten.joint import joint_groups, solve_joint
 from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _whole
-from uvbake.flatten.pinches import pinch_representatives, welded
+from uvbake.flatten.pinches import pinches_end_to_end, welded
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
 from uvbake.flatten.solvers.linalg import cholmod_available, make_solver
@@ -403,20 +403,14 @@ def _weld_pinches(items: list[tuple[np.ndarray, np.ndarray, str]], starts: Seque
         return items, starts, {}
     if len(keys) != len(items):
         raise InputError(f"pinch_keys has {len(keys)} entries for {len(items)} charts; pass one per chart (or None)")
-    if not items or all(k is None for k in keys):
-        return items, starts, {}
-    nv = np.array([len(V) for V, _, _ in items], np.int64)
-    off = np.cumsum(nv) - nv
-    K = np.concatenate([np.full(n, -1, np.int64) if k is None else np.asarray(k, dtype=np.int64)
-                        for n, k in zip(nv, keys)])
-    F = np.concatenate([np.asarray(F, dtype=np.int64) + o for (_, F, _), o in zip(items, off)])
-    group = np.repeat(np.arange(len(items)), nv)
-    rep = pinch_representatives(K, F, group)
+    nv = [len(V) for V, _, _ in items]
+    rep, off = pinches_end_to_end(list(keys), [F for _, F, _ in items], nv)
     if rep is None:
         return items, starts, {}
     items, starts = list(items), None if starts is None else list(starts)
     backs: dict[int, np.ndarray] = {}
-    for i in unique_sorted(group[rep != np.arange(len(rep))]):     # one per chart with a pinch
+    moved = np.flatnonzero(rep != np.arange(len(rep)))
+    for i in unique_sorted(np.searchsorted(off, moved, side="right") - 1):     # one per chart with a pinch
         Vi, Fi, name = items[i]
         kept, Fw, backs[int(i)] = welded(np.asarray(Fi, dtype=np.int64), rep[off[i]:off[i] + nv[i]] - off[i])
         items[i] = (np.asarray(Vi, dtype=np.float64)[kept], Fw, name)
