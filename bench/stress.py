@@ -14,9 +14,14 @@ Built with trimesh and numpy (nothing read from disk, the same inputs on every m
 - ``poisson_knot`` and ``bpa_knot``: what Open3D rebuilds from 20,000 points sampled on
   ``bench/shapes.py``'s torus knot: a screened Poisson surface (depth 7, the 5 % least dense
   vertices trimmed: slivers and open rims) and a ball-pivoting one (holes, many pieces). Open3D's
-  reconstruction is multithreaded and may differ in its last bits between machines.
+  reconstruction is multithreaded and may differ in its last bits between machines;
+- ``helix_ribbon``: a strip along four turns of a helix, radial across: flattened, one chart winds
+  four times around a point, so it cannot be one valid chart;
+- ``gyroid_ball``, ``cheese`` and ``schwarz_p``: closed surfaces of genus 2, 10 and 5 from implicit
+  functions (a gyroid in a ball, a slab with 14 round holes, a block of Schwarz's P surface), by
+  scikit-image's marching cubes (the bench extra; skipped without it).
 For each: in-process ``uvbake.unwrap((V, F), alpha=a)`` without a bake and ``xatlas.parametrize``,
-process CPU seconds, charts, validity, the least texel share and the area below a quarter of its
+process CPU seconds, charts, validity (both tools' atlases), the least texel share and the area below a quarter of its
 fair share, and uvbake's stage times.
 """
 
@@ -108,11 +113,62 @@ def _rebuilt(method, n=20000):
     return np.asarray(mesh.vertices), np.asarray(mesh.triangles)
 
 
+def _helix_ribbon(turns=4, n=800, w=6):
+    """A strip along a helix, radial across (0.9 to 1.1 around a radius-1 axis, pitch 0.15 per radian):
+    nearly developable, and flattened it winds about ``turns`` times around one point, so one chart
+    overlaps itself; cut into pieces of under a turn it lies flat."""
+    t, r = np.meshgrid(np.linspace(0, 2 * np.pi * turns, n), np.linspace(0.9, 1.1, w), indexing="ij")
+    V = np.stack([r * np.cos(t), r * np.sin(t), 0.15 * t], -1).reshape(-1, 3)
+    idx = np.arange(n * w).reshape(n, w)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    return V, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
+def _implicit(f, n, lo=-1.2, hi=1.2):
+    """The zero level set of ``f`` on an n^3 grid (scikit-image's marching cubes, in the bench extra), its
+    largest piece; None without scikit-image."""
+    try:
+        from skimage.measure import marching_cubes
+    except ImportError:
+        return None
+    import trimesh
+
+    x = np.linspace(lo, hi, n)
+    X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+    V, F, _, _ = marching_cubes(f(X, Y, Z), 0.0, spacing=(x[1] - x[0],) * 3)
+    m = max(trimesh.Trimesh(V, F, process=True).split(only_watertight=False), key=lambda p: len(p.faces))
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def _gyroid_ball():
+    """A gyroid inside a ball: a closed surface of genus 2 with tunnels through it."""
+    return _implicit(lambda X, Y, Z: np.maximum(np.sin(4 * X) * np.cos(4 * Y) + np.sin(4 * Y) * np.cos(4 * Z)
+                                                + np.sin(4 * Z) * np.cos(4 * X), X ** 2 + Y ** 2 + Z ** 2 - 1), 48)
+
+
+def _cheese():
+    """A slab with 14 round holes through it: a closed surface of genus 10 (some holes merge)."""
+    rng = np.random.default_rng(3)
+    H = rng.uniform(-0.9, 0.9, (14, 2))
+
+    def f(X, Y, Z):
+        slab = np.maximum(np.abs(Z) - 0.12, np.maximum(np.abs(X) - 1, np.abs(Y) - 1))
+        return np.maximum(slab, -np.min([np.hypot(X - h[0], Y - h[1]) - 0.13 for h in H], axis=0))
+    return _implicit(f, 72, -1.15, 1.15)
+
+
+def _schwarz_p():
+    """A block of the Schwarz P minimal surface, closed by the block's faces: genus 5."""
+    return _implicit(lambda X, Y, Z: np.maximum(np.cos(5 * X) + np.cos(5 * Y) + np.cos(5 * Z),
+                                                np.maximum(np.abs(X), np.maximum(np.abs(Y), np.abs(Z))) - 1), 56)
+
+
 def inputs():
     out = {f"noise_{s:g}%": (lambda s=s: _noisy_sphere(5, s / 100)) for s in (0.5, 1, 2, 5)}
     out.update(noise5_small=lambda: _noisy_sphere(4, 0.05), heightfield=_heightfield, cow_x16=_cow_x16,
                soup=_soup, mobius=_mobius, holes_60=_holey_sphere, poisson_knot=lambda: _rebuilt("poisson"),
-               bpa_knot=lambda: _rebuilt("bpa"))
+               bpa_knot=lambda: _rebuilt("bpa"), helix_ribbon=_helix_ribbon, gyroid_ball=_gyroid_ball,
+               cheese=_cheese, schwarz_p=_schwarz_p)
     return out
 
 
@@ -130,7 +186,7 @@ def main(argv=None):
     from uvbake.validate import validate
 
     uvbake.unwrap(_mobius())                  # imports and caches warmed up once
-    print("| input | triangles | alpha | uvbake CPU s | xatlas CPU s | ratio | charts (xatlas) | valid | "
+    print("| input | triangles | alpha | uvbake CPU s | xatlas CPU s | ratio | charts (xatlas) | valid (xatlas) | "
           "least texel share | area < 1/4 | uvbake stages (s) |")
     print("|---|---:|---|---:|---:|---:|---|---|---:|---:|---|")
     for name, make in inputs().items():
@@ -138,7 +194,7 @@ def main(argv=None):
             continue
         mesh = make()
         if mesh is None:
-            print(f"# {name}: skipped (../shared/meshes is not there)")
+            print(f"# {name}: skipped (../shared/meshes or scikit-image is not there)")
             continue
         V, F = np.asarray(mesh[0], np.float64), np.asarray(mesh[1], np.int64)
         t = time.process_time()
@@ -146,6 +202,9 @@ def main(argv=None):
         atlas.add_mesh(V.astype(np.float32), F.astype(np.uint32))
         atlas.generate()
         x_cpu = time.process_time() - t
+        _, x_idx, x_uv = atlas.get_mesh(0)
+        xv = validate(x_uv.astype(np.float64)[x_idx], resolution_px=1024)
+        x_ok = "True" if xv.valid else f"False: {len(xv.flipped)} flipped or collapsed, {len(xv.overlap_pairs)} overlapping"
         for a in args.alphas:
             t = time.process_time()
             r = uvbake.unwrap((V, F), alpha=a)
@@ -154,7 +213,7 @@ def main(argv=None):
             stages = ", ".join(f"{k[:-2]} {v:.2f}" for k, v in r.report["timings"].items()
                                if k not in ("total_s", "bake_s"))
             print(f"| {name} | {len(F)} | {a:g} | {cpu:.2f} | {x_cpu:.2f} | {cpu / x_cpu:.1f} | "
-                  f"{r.report['charts_final']} ({atlas.chart_count}) | {ok} | {r.report['min_texel_share']:.3f} | "
+                  f"{r.report['charts_final']} ({atlas.chart_count}) | {ok} ({x_ok}) | {r.report['min_texel_share']:.3f} | "
                   f"{100 * r.report['area_below_quarter']:.2f}% | {stages} |", flush=True)
 
 
