@@ -56,6 +56,8 @@ from uvbake.atlas.distance import min_chart_distance  # noqa: E402
 from uvbake.atlas.pack import pack_charts  # noqa: E402
 from uvbake.mesh.arrays import signed_areas  # noqa: E402
 
+from packers import spread  # noqa: E402
+
 BPY = Path("/work/venvs/bpy/bin/python")
 #: A layout keeps the gutter when its charts are at least gutter - GAP_TOL_PX texels apart: Blender
 #: stores UVs as float32, which rounds its 4-texel margins on a 1024-texel atlas to 3.9998 (2e-4 short).
@@ -123,15 +125,6 @@ def run_xatlas(uvs, faces, N, g, padding=None):
     area = area_px(out, faces, W, H)
     return dict(eff=area / side ** 2, own=area / (W * H), time=dt, gap=gap_px(out, faces, W, H),
                 atlas=f"{W}x{H}", note=note, setting=f"padding {po.padding}")
-
-
-def spread(uvs):
-    """The charts moved apart on a grid (each its own cell): xatlas's add_uv_mesh joins charts that have
-    a vertex at the same UV (each chart's LSCM pins one at the origin), which merged uvbake's 5 beetle
-    charts into 2 and 600 kit charts into 598, packed overlapping (min gap 0)."""
-    step = 1.25 * max(max(float(np.ptp(u, axis=0).max()) for u in uvs), 1e-12)
-    k = math.ceil(math.sqrt(len(uvs)))
-    return [u - u.min(axis=0) + step * np.array([i % k, i // k]) for i, u in enumerate(uvs)]
 
 
 def run_blender(uvs, faces, N, g, bpy_python, cache=None, margin=None):

@@ -31,3 +31,25 @@ def test_rectpack_method_keeps_gutter():
     uvs, faces = chart_set(6, n=6)
     res = pack_charts(uvs, faces, texture_size_px=512, gutter_px=4, method=packers.rectpack_placer)
     assert min_gap(res.uv, faces) >= 4 / 512 * (1 - 1e-9)
+
+
+def test_xatlas_packs_charts_that_share_a_uv_position_apart():
+    """Charts as conformal maps leave them, each with a vertex at the origin: xatlas's add_uv_mesh
+    would join them into one chart packed on top of itself; the placer spreads them first."""
+    pytest.importorskip("xatlas")
+    uvs, faces = chart_set(5, n=6)
+    uvs = [uv - uv[0] for uv in uvs]                    # every chart's first vertex at (0, 0)
+    res = pack_charts(uvs, faces, texture_size_px=512, gutter_px=4, method=packers.xatlas_placer)
+    assert min_gap(res.uv, faces) >= 4 / 512 * (1 - 1e-9)
+
+
+def test_spread_moves_charts_apart_and_keeps_their_shapes():
+    uvs, _ = chart_set(5, n=6)
+    uvs = [uv - uv[0] for uv in uvs]
+    out = packers.spread(uvs)
+    boxes = [(o.min(axis=0), o.max(axis=0)) for o in out]
+    for i in range(len(out)):
+        np.testing.assert_allclose(out[i] - out[i][0], uvs[i] - uvs[i][0], rtol=0, atol=1e-12)   # translated only
+        for j in range(i):                               # boxes pairwise disjoint
+            (a0, a1), (b0, b1) = boxes[i], boxes[j]
+            assert np.any(a1 < b0) or np.any(b1 < a0)
