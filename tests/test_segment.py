@@ -223,3 +223,36 @@ def test_small_pieces_take_the_dense_fiedler_vector_the_iterative_one_approximat
     # M-orthogonal to the constants, as LOBPCG's is constrained to be; its sign fixed (largest entry > 0)
     assert abs(mass @ dense) <= 1e-9 * np.abs(mass * dense).sum()
     assert dense[np.argmax(np.abs(dense))] > 0
+
+
+def test_dense_laplacian_is_the_sparse_one_to_the_bit():
+    """Small pieces build their dual Laplacian densely (no scipy.sparse conversions); the entries and
+    each row's degree are the sparse construction's exactly, so the cuts are the same."""
+    import uvbake.mesh.cut as cut
+    from uvbake.mesh.topology import face_adjacency
+
+    rng = np.random.default_rng(4)
+    for V, F in (sphere(1), sphere(2), bumpy_disk(6), torus(12, 6, r=0.5)):
+        V = V * rng.uniform(0.5, 2.0, 3) + rng.normal(0, 0.02, V.shape)
+        fi, fj, e = face_adjacency(F, len(V))
+        w = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+        w = w / w.mean()
+        dense = cut._dense_laplacian(len(F), fi, fj, w)
+        assert np.array_equal(dense, cut._laplacian(len(F), fi, fj, w).toarray())
+        assert np.allclose(dense.sum(axis=1), 0.0, atol=1e-12)         # a Laplacian: rows sum to zero
+    # a pair listed twice (two triangles sharing two edges) takes the sparse path: still the same
+    fi2, fj2, w2 = np.array([0, 0, 1]), np.array([1, 1, 2]), np.array([0.5, 0.25, 1.0])
+    assert np.array_equal(cut._dense_laplacian(3, fi2, fj2, w2), cut._laplacian(3, fi2, fj2, w2).toarray())
+
+
+def test_cut_to_disks_cuts_each_closed_sphere_of_a_kit_into_two_disks():
+    """A closed genus-0 piece is bisected once and its two sides are not checked again (each is a disk
+    with holes by bisect's contract): every part of a kit of spheres is a disk, two per sphere."""
+    Vs, Fs = sphere(1)
+    V = np.vstack([Vs + 3 * k for k in range(5)])
+    F = np.vstack([Fs + k * len(Vs) for k in range(5)])
+    lab = cut_to_disks(V, F)
+    charts = _parts_valid(V, F, lab, 10)
+    for c in charts:
+        topo = topology(c.F)
+        assert topo.genus == 0 and topo.n_boundary_loops == 1 and topo.n_components == 1
