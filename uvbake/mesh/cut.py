@@ -130,10 +130,10 @@ def _laplacian(m, fi, fj, w):
 
 
 def _dense_laplacian(m, fi, fj, w):
-    """``_laplacian(m, fi, fj, w).toarray()``, the same values to the bit, without scipy.sparse's
-    conversions (about 1 ms a call: most of a small closed part's cut). Each degree is summed as the
-    sparse row sum sums it (add.reduceat over the row's entries by column); a pair of triangles sharing
-    two edges takes the sparse path."""
+    """``_laplacian(m, fi, fj, w).toarray()`` without scipy.sparse's conversions (about 1 ms a call: most
+    of a small closed part's cut). Each degree is summed as scipy's row sum sums it (add.reduceat over
+    the row's entries by column), so the values are the sparse ones to the bit; a pair of triangles
+    sharing two edges takes the sparse path."""
     rows, cols, vals = np.concatenate([fi, fj]), np.concatenate([fj, fi]), np.concatenate([w, w])
     o = np.lexsort((cols, rows))
     rows, cols, vals = rows[o], cols[o], vals[o]
