@@ -21,8 +21,8 @@ Built with trimesh and numpy (nothing read from disk, the same inputs on every m
   functions (a gyroid in a ball, a slab with 14 round holes, a block of Schwarz's P surface), by
   scikit-image's marching cubes (the bench extra; skipped without it).
 For each: in-process ``uvbake.unwrap((V, F), alpha=a)`` without a bake and ``xatlas.parametrize``,
-process CPU seconds, charts, validity (both tools' atlases), the least texel share and the area below a quarter of its
-fair share, and uvbake's stage times.
+process CPU seconds, charts, validity (both tools' atlases), the least texel share and the area below
+a quarter of its fair share, and uvbake's stage times.
 """
 
 from __future__ import annotations
@@ -204,7 +204,8 @@ def main(argv=None):
         x_cpu = time.process_time() - t
         _, x_idx, x_uv = atlas.get_mesh(0)
         xv = validate(x_uv.astype(np.float64)[x_idx], resolution_px=1024)
-        x_ok = "True" if xv.valid else f"False: {len(xv.flipped)} flipped or collapsed, {len(xv.overlap_pairs)} overlapping"
+        x_ok = "True" if xv.valid else \
+            f"False: {len(xv.flipped)} flipped or collapsed, {len(xv.overlap_pairs)} overlapping"
         for a in args.alphas:
             t = time.process_time()
             r = uvbake.unwrap((V, F), alpha=a)
