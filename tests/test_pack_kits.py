@@ -60,3 +60,76 @@ def test_few_charts_never_reach_the_rule(monkeypatch, n):
     monkeypatch.setattr(pack_module, "_many_coarse_px", lambda *a: calls.append(a) or real(*a))
     pack_charts(*_kit(n), texture_size_px=256, gutter_px=2)
     assert calls == []
+
+
+def _atlas_with(blocked, margin):
+    """A shape packer's atlas whose rows are ``blocked`` (its border margins blocked too)."""
+    from uvbake.atlas.shapepack import _Atlas, update_runs
+
+    h, w = blocked.shape
+    atlas = _Atlas(w, None, margin, rows=h + 64)
+    atlas.blocked[:h] |= blocked
+    update_runs(atlas.blocked, atlas.run, atlas.rowmax, 0, len(atlas.blocked), 0, w)
+    atlas.top = h
+    return atlas
+
+
+def _first_fit_brute(blocked_all, fp, y_from, y_to):
+    """The first (x, y) in row-major order, y_from <= y < y_to, where no texel of ``fp`` is blocked."""
+    fh, fw = fp.shape
+    for y in range(y_from, y_to):
+        for x in range(blocked_all.shape[1] - fw + 1):
+            if not (blocked_all[y:y + fh, x:x + fw] & fp).any():
+                return x, y
+    return None
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_search_from_a_start_row_finds_the_first_fit_at_or_above_it_and_says_how_far_it_ruled_out(seed):
+    from uvbake.atlas.shapepack import _runs
+
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((40, 48)) < 0.35
+    blocked[rng.random(40) < 0.3] = False                     # some free rows, so fits exist
+    fp = rng.random((int(rng.integers(2, 5)), int(rng.integers(2, 6)))) < 0.7
+    fp[0, 0] = fp[-1, -1] = True                              # a tight box, as footprints are
+    for start in (0, 3, 11, 25):
+        atlas = _atlas_with(blocked, margin=1)
+        pos = atlas.find(_runs(fp), *fp.shape, start=start)
+        top = atlas.top + 1                                   # rows above the top are all free
+        expected = _first_fit_brute(atlas.blocked, fp, max(start, atlas.m), top)
+        assert pos == expected
+        assert atlas.searched == (pos[1] if pos else max(start, top))
+        # with a bound on the top edge, nothing fits between the start and the row it says it ruled out
+        atlas = _atlas_with(blocked, margin=1)
+        bound = int(rng.integers(5, 40))
+        pos = atlas.find(_runs(fp), *fp.shape, top_bound=bound, start=start)
+        limit = min(top, bound - fp.shape[0] + 1)
+        assert pos == _first_fit_brute(atlas.blocked, fp, max(start, atlas.m), limit)
+        if pos is None:
+            assert _first_fit_brute(atlas.blocked, fp, max(start, atlas.m), atlas.searched) is None
+
+
+def test_equal_footprints_skip_the_rows_ruled_out_for_each_other_and_the_layout_is_the_same(monkeypatch):
+    from uvbake.atlas import shapepack
+
+    # 120 copies of three parts at one size: many charts share a footprint, as a kit's do
+    uvs, faces = _kit(3, seed=2)
+    uvs, faces = [uv + (i % 7, 0.0) for i in range(120) for uv in uvs], faces * 120
+    packer = ShapePacker(uvs, faces, [np.zeros(1)] * len(uvs))
+    real = shapepack._Atlas.find
+    starts = []
+
+    def recording(self, runs, h, w, top_bound=None, start=0):
+        starts.append(start)
+        return real(self, runs, h, w, top_bound=top_bound, start=start)
+
+    monkeypatch.setattr(shapepack._Atlas, "find", recording)
+    memo = packer.pack(6.0, 256, None, 2)
+    assert sum(s > 0 for s in starts) > len(starts) // 2       # the memo is used, not idle
+    monkeypatch.setattr(shapepack._Atlas, "find", lambda self, runs, h, w, top_bound=None, start=0:
+                        real(self, runs, h, w, top_bound=top_bound))
+    plain = ShapePacker(uvs, faces, [np.zeros(1)] * len(uvs)).pack(6.0, 256, None, 2)
+    np.testing.assert_array_equal(memo.offset, plain.offset)
+    np.testing.assert_array_equal(memo.rotation, plain.rotation)
+    assert memo.height_used == plain.height_used

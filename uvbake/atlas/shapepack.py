@@ -34,6 +34,7 @@ from uvbake.mesh.arrays import pieces, signed_areas
 _CHUNK = 16          # candidate rows tested together
 _BATCH = 512         # surviving positions whose other runs are tested together
 _RUN = np.int16      # free-run lengths (atlases are at most 16384 texels wide): half the memory traffic of int32
+_NOWHERE = 1 << 40   # find()'s `searched` for a footprint wider than the strip: no row fits
 
 
 def _raw_runs(fp):
@@ -206,11 +207,14 @@ class _Atlas:
         self.run = np.vstack([self.run, run])
         self.rowmax = np.concatenate([self.rowmax, rowmax])
 
-    def find(self, runs, h, w, top_bound=None):
+    def find(self, runs, h, w, top_bound=None, start=0):
         """Lowest, then leftmost, (x, y) where a footprint with ``runs`` fits; None if nowhere, or if its
-        top edge ``y + h`` would exceed ``top_bound`` (a rotation already found does better)."""
+        top edge ``y + h`` would exceed ``top_bound`` (a rotation already found does better). Rows below
+        ``start`` are known not to fit. ``self.searched`` is then the first row not ruled out: the row
+        found, or where the search stopped."""
         dy, a, L = runs
         nx = self.w - w + 1
+        self.searched = _NOWHERE
         if nx <= 0 or w > self.w - 2 * self.m:
             return None
         if self.top + h + 1 > len(self.blocked):
@@ -220,18 +224,20 @@ class _Atlas:
             ny = min(ny, self.limit - self.m - h + 1)
         if top_bound is not None:
             ny = min(ny, top_bound - h + 1)
-        if ny <= self.m:
+        self.searched = max(ny, start)
+        start = max(start, self.m)
+        if ny <= start:
             return None
         # rows where every footprint row finds a long enough free run somewhere
         Lrow = np.zeros(h, _RUN)
         np.maximum.at(Lrow, dy, L)
-        # a (ny, h) window view of the (contiguous) row maxima, made directly: sliding_window_view and
-        # as_strided take 15-30 us a call, more than the test (the rows exist: the strip grew to top + h + 1)
-        rm = self.rowmax[:ny + h - 1]
-        if len(rm) != ny + h - 1 or not rm.flags.c_contiguous:
+        # a (ny - start, h) window view of the (contiguous) row maxima, made directly: sliding_window_view
+        # and as_strided take 15-30 us a call, more than the test (the rows exist: the strip grew to top + h + 1)
+        rm = self.rowmax[start:ny + h - 1]
+        if len(rm) != ny + h - 1 - start or not rm.flags.c_contiguous:
             raise RuntimeError("shape packer: row table shorter than the search window")
-        win = np.ndarray((ny, h), rm.dtype, rm, 0, (rm.itemsize, rm.itemsize))
-        ys = np.flatnonzero((win >= Lrow[None, :]).all(axis=1))
+        win = np.ndarray((ny - start, h), rm.dtype, rm, 0, (rm.itemsize, rm.itemsize))
+        ys = np.flatnonzero((win >= Lrow[None, :]).all(axis=1)) + start
         k0, stride = 0, self.run.shape[1]
         while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
             yc = ys[k0:k0 + _CHUNK]
@@ -251,6 +257,7 @@ class _Atlas:
             if len(yi):
                 pos = self._first_fit(yc[yi] * stride + xi, runs, k)
                 if pos is not None:
+                    self.searched = pos[1]
                     return pos
         return None
 
@@ -365,7 +372,8 @@ class ShapePacker:
         return self._cands[i]
 
     def _all_candidates(self, density):
-        """{chart: [(footprint, angle, offset, runs) per rotation tried]}: each base angle's footprint,
+        """{chart: [(footprint, angle, offset, runs, footprint number) per rotation tried]}: each base angle's
+        footprint,
         then its quarter turns as the footprint turned on the texel grid (exact: a quarter turn about a
         grid point maps texels onto texels), so ``texels = density * R(angle) @ uv + offset``. A half
         turn's runs are its footprint's mirrored."""
@@ -387,9 +395,11 @@ class ShapePacker:
             raws.extend(own)
         runs = _runs_many(raws)
         cands: dict = {i: [] for i in range(len(self.uvs))}
+        same: dict = {}                             # footprint -> its number: equal footprints share one
         for j, ((i, _, theta, t), f) in enumerate(zip(items, fps)):     # one per chart and base angle
             for k in range(turns):
-                cands[i].append((f[k], theta + k * np.pi / 2, t, runs[j * turns + k]))
+                sid = same.setdefault((f[k].shape, f[k].tobytes()), len(same))
+                cands[i].append((f[k], theta + k * np.pi / 2, t, runs[j * turns + k], sid))
                 # a quarter turn counter-clockwise: (x, y) -> (h - y, x) keeps texels on texels
                 t = np.array([f[k].shape[0] - t[1], t[0]])
         return cands
@@ -434,14 +444,20 @@ class ShapePacker:
         n = len(self.uvs)
         rotation, offset = np.zeros(n), np.zeros((n, 2))
         placed = 0.0
+        # per footprint number, the rows below which that footprint is known not to fit: blocked texels
+        # are only ever added, so a row ruled out for one chart stays ruled out for an equal footprint
+        # (a kit's many small charts share footprints: 48-75 % of the 1,000-part kit's candidates)
+        low: dict = {}
         for i in self.order if order is None else order:    # one iteration per chart; the search is numpy
             best = None
             cands = self._cached(i, density)
             # the flattest rotations first: their top edges bound the search of the others (the lowest
             # top edge wins, ties by y, x, rotation index, so the order tried does not change the result)
             for r in sorted(range(len(cands)), key=lambda r: (cands[r][0].shape[0], r)):
-                fp, theta, t, runs = cands[r]
-                pos = atlas.find(runs, fp.shape[0], fp.shape[1], top_bound=None if best is None else best[0][0])
+                fp, theta, t, runs, sid = cands[r]
+                pos = atlas.find(runs, fp.shape[0], fp.shape[1], top_bound=None if best is None else best[0][0],
+                                 start=low.get(sid, 0))
+                low[sid] = max(low.get(sid, 0), atlas.searched)
                 if pos is None:
                     continue
                 key = (pos[1] + fp.shape[0], pos[1], pos[0], r)
