@@ -48,14 +48,24 @@ def resolving_coarse_px(packer: ShapePacker, width: int, height: int, coarse_px:
     area-weighted median chart, at the density filling the atlas, under ``small_texels`` coarse texels a
     side. There the coarse footprints' rounding (a texel or two a side) is a large part of every chart,
     so the coarse search settles on a density its full-resolution layout leaves far short of the top."""
-    a = packer.area
-    if a.sum() <= 0:
+    if packer.area.sum() <= 0:
         return coarse_px
-    side = np.sqrt(a * width * height / a.sum())              # texels a side at the density filling the atlas
-    order = np.argsort(side, kind="stable")
-    median = side[order][min(int(np.searchsorted(np.cumsum(a[order]), 0.5 * a.sum())), len(a) - 1)]
-    small = median / _coarse_factor(width, height, coarse_px) < small_texels
+    small = filling_side(packer, width, height) / _coarse_factor(width, height, coarse_px) < small_texels
     return 2 * coarse_px if small else coarse_px
+
+
+def median_side(packer: ShapePacker, density: float) -> float:
+    """Texels a side of the area-weighted median chart (the square root of its area) at ``density``."""
+    a = packer.area
+    side = np.sqrt(a) * density
+    order = np.argsort(side, kind="stable")
+    return float(side[order][min(int(np.searchsorted(np.cumsum(a[order]), 0.5 * a.sum())), len(a) - 1)])
+
+
+def filling_side(packer: ShapePacker, width: int, height: int) -> float:
+    """median_side at the density that would fill a ``width x height`` atlas (0 for charts of no area)."""
+    total = float(packer.area.sum())
+    return median_side(packer, np.sqrt(width * height / total)) if total > 0 else 0.0
 
 
 def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
@@ -81,7 +91,7 @@ def _search(packer, width, height, g, lo, lo_pack, hi, s, max_packs, rel_tol):
 
 def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, coarse_px: int = 256,
               rel_tol: float = 4e-3, coarse_tol: float | None = None, fine_packs: int = 2, guess: float | None = None,
-              beat_guess: bool = False, fine_side: int | None = None) -> ShapePacking | None:
+              beat_guess: bool = False, fine_side: int | None = None, finer_last: bool = False) -> ShapePacking | None:
     """Largest common density (texels per world unit) at which the charts fill a ``width x height`` atlas.
 
     Each trial packs an unbounded strip ``width`` texels wide and is feasible when it needs at most
@@ -93,7 +103,9 @@ def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, c
     making its long side at most ``fine_side``; None: the atlas's own). ``guess`` (a density, e.g. a box
     packer's) starts the search; with
     ``beat_guess`` and no full-resolution trials, a first trial failing at ``guess`` ends it (None: the
-    search would only find lower densities).
+    search would only find lower densities). With ``finer_last`` (for tiny charts) the first
+    full-resolution trial is made on a raster twice as fine as the atlas instead, aimed higher by what
+    the finer rounding saves (:func:`_finer_gain`); the atlas's own trials follow only if it fails.
     Returns a ShapePacking at full resolution, or None if nothing fits.
     """
     g = int(gutter_px)
@@ -124,7 +136,32 @@ def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, c
     f = 1 if fine_side is None else _fine_factor(width, height, fine_side)
     if f >= c or fine_packs == 0:
         return ShapePacking(density=lo * c, rotation=p.rotation, offset=p.offset * c, height_used=p.height_used * c)
+    if finer_last and f == 1:
+        q = _twice_finer(packer, width, height, g, lo * c * 1.03)
+        if q is not None:
+            return q
     return _finer(packer, width, height, g, lo, p, c // f, f, top, fine_packs, rel_tol)
+
+
+def _finer_gain(packer, density, g):
+    """The density a raster twice as fine as the atlas adds, as a factor: a chart's footprint and its
+    gutter's dilation round it up by about a texel a side, half a texel on the finer raster, so a chart
+    ``s`` texels wide (the area-weighted median) with gutter ``g`` needs (s + g + 1) / (s + g + 1/2)
+    less room each way (measured on kits: 1.01-1.03 in density; docs/decisions/pack.md)."""
+    s = median_side(packer, density)
+    return (s + g + 1.0) / (s + g + 0.5)
+
+
+def _twice_finer(packer, width, height, g, density):
+    """One trial at ``density`` (texels of the atlas per unit) times :func:`_finer_gain`, on a raster twice
+    as fine as the atlas (gutter and margins 2 g fine texels: every distance halves back), returned at
+    the atlas's resolution; None when it does not fit."""
+    s = 2.0 * density * _finer_gain(packer, density, g)
+    p = packer.pack(s, 2 * width, None, 2 * g, give_up_above=2 * height)
+    if p is None or not p.complete or p.height_used > 2 * height:
+        return None
+    return ShapePacking(density=p.density / 2, rotation=p.rotation, offset=p.offset / 2,
+                        height_used=-(-p.height_used // 2))
 
 
 def _halved(packer, s, width, height, g):

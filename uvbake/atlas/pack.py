@@ -435,6 +435,7 @@ _FIT_SCALE_FROM = 64
 _MANY_COARSE_TOL = 0.04
 _MANY_COARSE_PX = 256
 _SMALL_CHART_TEXELS = 16
+_TINY_CHART_TEXELS = 32         # atlas texels: the last trial on a raster twice as fine (fit_scale's finer_last)
 _BIG_MESH_FACES = 8192          # orders for any chart count, compaction at half resolution
 _COMPACT_FULL_FACES = 16384     # compaction at full resolution
 _COMPACT_CHARTS = 8
@@ -449,13 +450,14 @@ _ORDERS_UP_TO = 8
 
 def _fit_free_scale(packer, W, H, g, guess):
     """The densest shape packing of a W x H atlas; None when it cannot beat ``guess`` (boxes' density)."""
-    from uvbake.atlas.fit import fit_scale, fit_width, scale_to_border, swap_budget
+    from uvbake.atlas.fit import filling_side, fit_scale, fit_width, scale_to_border, swap_budget
 
     n, faces = len(packer.uvs), sum(len(F) for F in packer.faces)
     big = faces >= _BIG_MESH_FACES
     if n >= _FIT_SCALE_FROM:
         p = fit_scale(packer, W, H, g, coarse_px=_many_coarse_px(packer, W, H), coarse_tol=_MANY_COARSE_TOL,
-                      fine_packs=1, guess=guess, beat_guess=guess is not None, fine_side=_FINE_SIDE)
+                      fine_packs=1, guess=guess, beat_guess=guess is not None, fine_side=_FINE_SIDE,
+                      finer_last=2 * max(W, H) <= _FINE_SIDE and filling_side(packer, W, H) < _TINY_CHART_TEXELS)
     else:       # one raster, strips of several widths, each layout scaled to the atlas
         area = float(packer.area.sum())
         p = fit_width(packer, W, H, g, guess if guess is not None else np.sqrt(0.5 * W * H / area),
