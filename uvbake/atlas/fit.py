@@ -136,11 +136,7 @@ def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, c
     f = 1 if fine_side is None else _fine_factor(width, height, fine_side)
     if f >= c or fine_packs == 0:
         return ShapePacking(density=lo * c, rotation=p.rotation, offset=p.offset * c, height_used=p.height_used * c)
-    if finer_last and f == 1:
-        q = _twice_finer(packer, width, height, g, lo * c * 1.03)
-        if q is not None:
-            return q
-    return _finer(packer, width, height, g, lo, p, c // f, f, top, fine_packs, rel_tol)
+    return _finer(packer, width, height, g, lo, p, c // f, f, top, fine_packs, rel_tol, finer_last and f == 1)
 
 
 def _finer_gain(packer, density, g):
@@ -174,9 +170,14 @@ def _halved(packer, s, width, height, g):
     return None, None
 
 
-def _finer(packer, width, height, g, lo, p, k, f, top, fine_packs, rel_tol):
+def _finer(packer, width, height, g, lo, p, k, f, top, fine_packs, rel_tol, twice_finer=False):
     """fit_scale's last trials, on a raster ``f`` times coarser than the atlas: from the coarse layout
-    ``p`` (density ``lo``, made ``k`` times coarser still), returned at the atlas's resolution."""
+    ``p`` (density ``lo``, made ``k`` times coarser still), returned at the atlas's resolution. With
+    ``twice_finer`` (``f`` = 1) one trial on a raster twice as fine comes first (:func:`_twice_finer`)."""
+    if twice_finer:
+        q = _twice_finer(packer, width, height, g, lo * k * 1.03)
+        if q is not None:
+            return q
     # the coarse layout on the fine raster: scaled by k, still valid
     best = ShapePacking(density=lo * k, rotation=p.rotation, offset=p.offset * k, height_used=p.height_used * k)
     _, p = _search(packer, width // f, height // f, -(-g // f), lo * k, best, top / f, lo * k * 1.03, fine_packs,
