@@ -404,8 +404,9 @@ class ShapePacker:
                 t = np.array([f[k].shape[0] - t[1], t[0]])
         return cands
 
-    def _dilate_cached(self, i, r, fp, g):
-        key = (i, r, g)
+    def _dilate_cached(self, sid, fp, g):
+        """The dilation of footprint number ``sid`` (equal footprints share one) by the gutter ``g``."""
+        key = (sid, g)
         if key not in self._dilated:
             self._dilated[key] = _dilate(fp, g)
         return self._dilated[key]
@@ -462,11 +463,11 @@ class ShapePacker:
                     continue
                 key = (pos[1] + fp.shape[0], pos[1], pos[0], r)
                 if best is None or key < best[0]:
-                    best = (key, fp, theta, t + pos)
+                    best = (key, fp, theta, t + pos, sid)
             if best is None:
                 return None
-            key, fp, theta, off = best
-            atlas.place(self._dilate_cached(i, key[3], fp, g), key[2], key[1], g, key[1] + fp.shape[0] + g)
+            key, fp, theta, off, sid = best
+            atlas.place(self._dilate_cached(sid, fp, g), key[2], key[1], g, key[1] + fp.shape[0] + g)
             rotation[i] = float(np.arctan2(np.sin(theta), np.cos(theta)))
             offset[i] = off
             placed += self.area[i]
