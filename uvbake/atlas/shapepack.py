@@ -35,6 +35,7 @@ _CHUNK = 16          # candidate rows tested together
 _BATCH = 512         # surviving positions whose other runs are tested together
 _RUN = np.int16      # free-run lengths (atlases are at most 16384 texels wide): half the memory traffic of int32
 _NOWHERE = 1 << 40   # find()'s `searched` for a footprint wider than the strip: no row fits
+_SHARED_TEXELS = 4096  # footprints up to this many texels are numbered by content (see _all_candidates)
 
 
 def _raw_runs(fp):
@@ -372,11 +373,12 @@ class ShapePacker:
         return self._cands[i]
 
     def _all_candidates(self, density):
-        """{chart: [(footprint, angle, offset, runs, footprint number) per rotation tried]}: each base angle's
-        footprint,
-        then its quarter turns as the footprint turned on the texel grid (exact: a quarter turn about a
-        grid point maps texels onto texels), so ``texels = density * R(angle) @ uv + offset``. A half
-        turn's runs are its footprint's mirrored."""
+        """{chart: [(footprint, angle, offset, runs, footprint number) per rotation tried]}: each base
+        angle's footprint, then its quarter turns as the footprint turned on the texel grid (exact: a
+        quarter turn about a grid point maps texels onto texels), so ``texels = density * R(angle) @ uv
+        + offset``. A half turn's runs are its footprint's mirrored. Equal footprints of at most
+        _SHARED_TEXELS texels share a number (larger ones are rarely equal, and their bytes would be
+        kept as keys)."""
         base = self._base_footprints(density)
         turns = 4 if self.quarter_turns else 1
         items = [(i, fp, theta, t) for i in range(len(self.uvs)) for fp, theta, t in base[i]]
@@ -398,7 +400,8 @@ class ShapePacker:
         same: dict = {}                             # footprint -> its number: equal footprints share one
         for j, ((i, _, theta, t), f) in enumerate(zip(items, fps)):     # one per chart and base angle
             for k in range(turns):
-                sid = same.setdefault((f[k].shape, f[k].tobytes()), len(same))
+                key = (f[k].shape, f[k].tobytes()) if f[k].size <= _SHARED_TEXELS else (j, k)
+                sid = same.setdefault(key, len(same))
                 cands[i].append((f[k], theta + k * np.pi / 2, t, runs[j * turns + k], sid))
                 # a quarter turn counter-clockwise: (x, y) -> (h - y, x) keeps texels on texels
                 t = np.array([f[k].shape[0] - t[1], t[0]])
