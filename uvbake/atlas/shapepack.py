@@ -23,6 +23,7 @@ packed once.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,7 +36,6 @@ _CHUNK = 16          # candidate rows tested together
 _BATCH = 512         # surviving positions whose other runs are tested together
 _RUN = np.int16      # free-run lengths (atlases are at most 16384 texels wide): half the memory traffic of int32
 _NOWHERE = 1 << 40   # find()'s `searched` for a footprint wider than the strip: no row fits
-_SHARED_TEXELS = 4096  # footprints up to this many texels are numbered by content (see _all_candidates)
 
 
 def _raw_runs(fp):
@@ -376,9 +376,10 @@ class ShapePacker:
         """{chart: [(footprint, angle, offset, runs, footprint number) per rotation tried]}: each base
         angle's footprint, then its quarter turns as the footprint turned on the texel grid (exact: a
         quarter turn about a grid point maps texels onto texels), so ``texels = density * R(angle) @ uv
-        + offset``. A half turn's runs are its footprint's mirrored. Equal footprints of at most
-        _SHARED_TEXELS texels share a number (larger ones are rarely equal, and their bytes would be
-        kept as keys)."""
+        + offset``. A half turn's runs are its footprint's mirrored. Equal footprints share a number,
+        found by shape and a 128-bit digest of the texels (not the texels themselves: a large atlas's
+        large footprints would be copied per rotation; a collision could only cost a memo's rows,
+        never validity: find() tests every position it returns)."""
         base = self._base_footprints(density)
         turns = 4 if self.quarter_turns else 1
         items = [(i, fp, theta, t) for i in range(len(self.uvs)) for fp, theta, t in base[i]]
@@ -400,7 +401,7 @@ class ShapePacker:
         same: dict = {}                             # footprint -> its number: equal footprints share one
         for j, ((i, _, theta, t), f) in enumerate(zip(items, fps)):     # one per chart and base angle
             for k in range(turns):
-                key = (f[k].shape, f[k].tobytes()) if f[k].size <= _SHARED_TEXELS else (j, k)
+                key = (f[k].shape, hashlib.blake2b(f[k].tobytes(), digest_size=16).digest())
                 sid = same.setdefault(key, len(same))
                 cands[i].append((f[k], theta + k * np.pi / 2, t, runs[j * turns + k], sid))
                 # a quarter turn counter-clockwise: (x, y) -> (h - y, x) keeps texels on texels
