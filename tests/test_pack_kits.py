@@ -163,7 +163,11 @@ def test_a_finer_last_trial_that_does_not_fit_leaves_the_atlas_rasters_trial_to_
     kw = dict(coarse_px=512, coarse_tol=0.04, fine_packs=1, fine_side=2048)
     plain = fit.fit_scale(packer, 1024, 1024, 4, **kw)
     monkeypatch.setattr(fit, "_finer_gain", lambda *a: 3.0)         # aimed far too high: it cannot fit
+    tried = []
+    real = fit._twice_finer
+    monkeypatch.setattr(fit, "_twice_finer", lambda *a: tried.append(real(*a)) or tried[-1])
     failed = fit.fit_scale(packer, 1024, 1024, 4, finer_last=True, **kw)
+    assert tried == [None]                                          # the finer trial ran, and did not fit
     assert failed.density == plain.density
     np.testing.assert_array_equal(failed.offset, plain.offset)
     np.testing.assert_array_equal(failed.rotation, plain.rotation)

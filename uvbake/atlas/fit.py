@@ -143,7 +143,7 @@ def _finer_gain(packer, density, g):
     """The density a raster twice as fine as the atlas adds, as a factor: a chart's footprint and its
     gutter's dilation round it up by about a texel a side, half a texel on the finer raster, so a chart
     ``s`` texels wide (the area-weighted median) with gutter ``g`` needs (s + g + 1) / (s + g + 1/2)
-    less room each way (measured on kits: 1.01-1.03 in density; docs/decisions/pack.md)."""
+    less room each way (the model against measured kits: docs/decisions/pack.md)."""
     s = median_side(packer, density)
     return (s + g + 1.0) / (s + g + 0.5)
 
