@@ -512,6 +512,46 @@ def test_noisy_meshes_match_the_oracle():
         assert (len(expected) > 0) == tangled
 
 
+def test_box_pairs_of_sliver_strips_are_all_found_and_gridded_by_their_thin_side():
+    # strips of slivers side by side (a CAD cylinder's side: 40:1 triangles, the strip wider than a
+    # sliver is long), two crossing at a right angle and one at a free angle: the candidate grid finds
+    # every pair of boxes overlapping with positive area (brute force), and its cells follow the
+    # boxes' geometric mean side, not their long side (a cell that wide held 1,229 slivers of a real
+    # atlas)
+    from uvbake.validate import candidates
+
+    rng = np.random.default_rng(8)
+    quad = np.array([[[0, 0], [1, 0], [1, 1]], [[0, 0], [1, 1], [0, 1]]], float) * [0.02, 0.0005]
+    tris = []
+    for angle, x0, y0 in ((0.0, 0.1, 0.2), (np.pi / 2, 0.14, 0.19), (2.6, 0.9, 0.5)):
+        rot = np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
+        for a in range(3):                              # quads along the strip
+            for b in range(80):                         # and across it: 0.04 wide, 0.06 long
+                for t in quad + [0.02 * a, 0.0005 * b]:
+                    tris.append(t @ rot + [x0, y0] + rng.normal(0, 1e-7, (3, 2)))
+    C = np.array(tris)
+    lo, hi = C.min(axis=1), C.max(axis=1)
+    over = np.all((np.maximum(lo[:, None], lo[None]) < np.minimum(hi[:, None], hi[None])), axis=2)
+    i, j = np.nonzero(np.triu(over, 1))
+    seen = {}
+    real = candidates._group_pairs
+
+    def spy(group, item, m, **kw):
+        seen["most"] = int(np.bincount(group).max())
+        return real(group, item, m, **kw)
+
+    try:
+        candidates._group_pairs = spy
+        pairs, complete, n = candidates._bbox_pairs(C, np.ones(len(C), bool))
+    finally:
+        candidates._group_pairs = real
+    assert complete and n == len(i)
+    got = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    np.testing.assert_array_equal(got, np.stack([i, j], axis=1))
+    assert np.any((i // 480 == 0) & (j // 480 == 1))   # strips 0 and 1 cross
+    assert seen["most"] <= 100, seen                    # measured 64; cells of the long side held 328
+
+
 def test_raster_frame_for_charts_in_arbitrary_units_and_atlases_outside_the_unit_square():
     V, F = grid(4, 10.0, 5.0, 1.0)
     V = V * np.array([20.0, 10.0]) - np.array([190.0, 45.0])  # [10,30] x [5,15]
