@@ -154,6 +154,24 @@ def test_many_small_pieces_become_many_charts_never_one():
     assert not any(a["kind"] == "drop_small_components" for a in r.report["repair"]["actions"])
 
 
+def test_packing_many_charts_reports_charts_placed_while_it_runs():
+    # a kit's packing is most of its command: the progress moves per 64 charts placed in each trial
+    # (a work count, the same on every run), not once at the end
+    V, F = _soup(300)
+    seen = []
+    r = unwrap((V, F), texture_size_px=256, gutter_px=1,
+               progress=lambda stage, done, total: seen.append((stage, done, total)))
+    packing = [(d, n) for s, d, n in seen if s == "pack"]
+    assert r.report["charts_final"] == 300
+    running = [(d, n) for d, n in packing if d < n]
+    assert running and {n for _, n in running} == {300}
+    assert {d for d, _ in running} == {64, 128, 192, 256}           # each trial's counts
+    assert packing[-1] == (1, 1)                                    # the stage's end
+    seen2 = []
+    unwrap((V, F), texture_size_px=256, gutter_px=1, progress=lambda *a: seen2.append(a))
+    assert seen2 == seen                                            # the same calls on every run
+
+
 def test_too_many_pieces_are_refused_before_any_work_with_the_reason(monkeypatch):
     from uvbake.atlas import pipeline
 

@@ -27,6 +27,17 @@ def test_progress_shows_charts_and_iterations_without_rate():
     p.close()
     assert "8/8 charts" in buf.getvalue()
 
+def test_progress_counts_charts_placed_while_packing():
+    buf = _Terminal()
+    p = Progress(file=buf)
+    p.bar.mininterval = 0
+    p.stage("solve", 8, 8)
+    p.stage("pack", 64, 300)               # the running shape packing's charts placed
+    assert "uvbake pack: 64/300 charts" in buf.getvalue()
+    p.stage("pack", 1, 1)
+    p.close()
+
+
 def test_quiet_progress_writes_nothing():
     buf = _Terminal()
     p = Progress(quiet=True, file=buf)

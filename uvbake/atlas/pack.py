@@ -268,7 +268,7 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
 def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike], *,
                 texture_size_px: int | tuple[int, int] | None = 1024, gutter_px: int | None = None,
                 rotate: bool = True, method: str = "auto", texel_density: float | None = None,
-                mip_levels: int | None = None, aspect: str = "square") -> PackResult:
+                mip_levels: int | None = None, aspect: str = "square", progress: Any = None) -> PackResult:
     """Pack charts into one atlas in [0,1]^2 at a common scale, ``gutter_px`` texels apart.
 
     Parameters
@@ -301,6 +301,8 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
     aspect : "square" | "free"
         Shape of an atlas that grows (``texture_size_px=None``): square, or the rectangle of fewest
         texels (a long ribbon gets a long atlas).
+    progress : callable, optional
+        ``progress(placed, total)``: charts placed by the running shape packing, every 64 of them.
 
     Returns
     -------
@@ -329,7 +331,7 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
         raise InputError("aspect='free' sizes a growing atlas; pass texture_size_px=None with texel_density")
     if used == "shape":
         s, rotation, offset, out, gap, W, H, density, used = _place_shapes_or_boxes(
-            uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes=method == "auto")
+            uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes=method == "auto", progress=progress)
     else:
         s, rotation, offset, out, gap, used = _place_free_scale(uvs, faces, W, g, rotate, used)
         density = s * W
@@ -361,7 +363,7 @@ _BOXES_ONLY_FILL = 0.8
 _SHAPES_ONLY_FILL = 0.7
 
 
-def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes):
+def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_boxes, progress=None):
     """Shape packing; for "auto" on a square atlas of at most 64 charts at a free scale, boxes too (the
     denser wins), unless the boxes' fill decides alone (_BOXES_ONLY_FILL, _SHAPES_ONLY_FILL).
 
@@ -379,7 +381,7 @@ def _place_shapes_or_boxes(uvs, faces, W, H, g, density, rotate, K, aspect, try_
         if boxes is not None and (len(uvs) == 1 or fill >= _BOXES_ONLY_FILL):
             return (*boxes, W, H, boxes[0] * W, "maxrects")
     shapes = _place_shapes(uvs, faces, W, H, g, density, rotate, K, aspect, rects,
-                           guess=None if boxes is None else boxes[0] * W, hulls=hulls)
+                           guess=None if boxes is None else boxes[0] * W, hulls=hulls, progress=progress)
     if boxes is not None and (shapes is None or boxes[0] > shapes[0] * (1 + 1e-12)):
         return (*boxes, W, H, boxes[0] * W, "maxrects")
     s, rotation, offset, out, gap, W, H, density = shapes
@@ -517,7 +519,7 @@ def _grow(packer, g, density, mip_levels, aspect):
     return grow_atlas(packer, g, density, max(4, 2 ** mip_levels), aspect, _GROW_SIDE)
 
 
-def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, hulls=None):
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, hulls=None, progress=None):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing.
 
     With ``guess`` (a box packing's density) the free-scale search gives up, returning None, as soon as
@@ -527,7 +529,7 @@ def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rect
 
     few = rotate and density is None and len(uvs) <= 4
     packer = ShapePacker(uvs, faces, _shape_angles(len(uvs), rects, rotate, few), quarter_turns=bool(rotate),
-                         hulls=hulls)
+                         hulls=hulls, progress=progress)
     if density is None:
         p = _fit_free_scale(packer, W, H, g, guess)
         if p is None:

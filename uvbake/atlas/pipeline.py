@@ -465,7 +465,7 @@ def _pack_and_validate(run, pack_options):
     F = run.F
 
     def pack(uvs, Fs):
-        return pack_charts(uvs, Fs, **pack_options)
+        return pack_charts(uvs, Fs, progress=lambda done, total: run.note("pack", done, total), **pack_options)
 
     if run.opts["guarantee"] and run.opts["pack_splits"]:
         from uvbake.atlas.packsplit import BoxLayouts, split_for_packing

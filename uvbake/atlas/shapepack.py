@@ -36,6 +36,7 @@ _CHUNK = 16          # candidate rows tested together
 _BATCH = 512         # surviving positions whose other runs are tested together
 _RUN = np.int16      # free-run lengths (atlases are at most 16384 texels wide): half the memory traffic of int32
 _NOWHERE = 1 << 40   # find()'s `searched` for a footprint wider than the strip: no row fits
+_PROGRESS = 64       # charts placed between two progress calls
 
 
 def _raw_runs(fp):
@@ -319,10 +320,12 @@ class ShapePacker:
     angles : list of (r_i,) float arrays                         base rotations to try for each chart
     quarter_turns : bool                                         also try each base rotation + 90, 180, 270
     hulls : list of int arrays, optional                         each chart's uvbake.atlas.maxrects.chart_hulls
+    progress : callable, optional                                ``progress(placed, total)`` every _PROGRESS charts
     """
 
-    def __init__(self, uvs, faces, angles, *, quarter_turns=True, hulls=None):
+    def __init__(self, uvs, faces, angles, *, quarter_turns=True, hulls=None, progress=None):
         self.uvs, self.faces, self.angles, self.quarter_turns = uvs, faces, angles, quarter_turns
+        self.progress = progress
         self.bedges = [boundary_halfedges(F) for F in faces]
         self.flipped = []
         self.area = np.zeros(len(uvs))
@@ -453,7 +456,9 @@ class ShapePacker:
         # are only ever added, so a row ruled out for one chart stays ruled out for an equal footprint
         # (a kit's many small charts share footprints: 48-75 % of the 1,000-part kit's candidates)
         low: dict = {}
-        for i in self.order if order is None else order:    # one iteration per chart; the search is numpy
+        for done, i in enumerate(self.order if order is None else order):   # one per chart; the search is numpy
+            if self.progress is not None and done % _PROGRESS == 0 and done:
+                self.progress(done, n)          # a work count: the same calls on every run
             best = None
             cands = self._cached(i, density)
             # the flattest rotations first: their top edges bound the search of the others (the lowest

@@ -1,4 +1,4 @@
-"""The command line's progress display: charts solved, and the running LM iteration of a long solve.
+"""The command line's progress display: charts solved or placed, and the running LM iteration of a long solve.
 
     uvbake solve: 3/8 charts [00:04], LM iter 12: F 2.31e-01, |grad| 4.2e-05
 
@@ -33,11 +33,12 @@ class Progress:
                 self.bar = None
 
     def stage(self, stage: str, done: int, total: int) -> None:
-        """Pipeline stage callback: the chart count follows "solve"; other stages only rename the line."""
+        """Pipeline stage callback: the chart count follows "solve" (charts solved) and "pack" (charts
+        placed by the running trial); other stages only rename the line."""
         if self.bar is None or stage == "iterate":      # iterations arrive through iteration()
             return
         self.bar.set_description_str(f"uvbake {stage}", refresh=False)
-        if stage == "solve":
+        if stage in ("solve", "pack"):
             self.bar.total = max(int(total), 1)
             self.bar.n = int(done)
             if done >= total:
