@@ -39,6 +39,7 @@ chart would be counted twice; validated charts have none).
 from __future__ import annotations
 
 import numbers
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -268,7 +269,8 @@ def place_boxes(uvs: list[np.ndarray], faces: list[np.ndarray], N: int, g: int,
 def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike], *,
                 texture_size_px: int | tuple[int, int] | None = 1024, gutter_px: int | None = None,
                 rotate: bool = True, method: str = "auto", texel_density: float | None = None,
-                mip_levels: int | None = None, aspect: str = "square", progress: Any = None) -> PackResult:
+                mip_levels: int | None = None, aspect: str = "square",
+                progress: Callable[[int, int], Any] | None = None) -> PackResult:
     """Pack charts into one atlas in [0,1]^2 at a common scale, ``gutter_px`` texels apart.
 
     Parameters
@@ -308,8 +310,6 @@ def pack_charts(chart_uvs: Sequence[ArrayLike], chart_faces: Sequence[ArrayLike]
     -------
     :class:`PackResult`; ``efficiency`` = sum of |triangle areas| in texels / (width * height).
     """
-    import time
-
     t0 = time.perf_counter()
     uvs, faces = _check_inputs(chart_uvs, chart_faces, method)
     density = check_texel_density(texel_density)
@@ -347,8 +347,6 @@ def packed_result(out: list[np.ndarray], rotation: np.ndarray, offset: np.ndarra
                   area: float, W: int, H: int, g: int, method: str, t0: float) -> PackResult:
     """The PackResult of a layout at ``density`` texels per unit holding charts of UV ``area``
     (efficiency: their texels over the W x H atlas's), timed from ``t0`` (time.perf_counter)."""
-    import time
-
     return PackResult(uv=out, scale=float(density / W), texel_size_world=float(1.0 / density), rotation=rotation,
                       offset=offset, efficiency=float(density * density * area / (W * H)), texture_size_px=W,
                       gutter_px=g, method=method, time_s=time.perf_counter() - t0, min_gap_px=gap, width_px=W,
