@@ -517,7 +517,8 @@ def _grow(packer, g, density, mip_levels, aspect):
     return grow_atlas(packer, g, density, max(4, 2 ** mip_levels), aspect, _GROW_SIDE)
 
 
-def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, hulls=None, progress=None):
+def _place_shapes(uvs, faces, W, H, g, density, rotate, mip_levels, aspect, rects, guess=None, hulls=None,
+                  progress=None):
     """Shape packing (uvbake.atlas.shapepack) at the best common scale, at ``density`` or growing.
 
     With ``guess`` (a box packing's density) the free-scale search gives up, returning None, as soon as
