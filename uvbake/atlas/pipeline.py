@@ -33,9 +33,8 @@ from uvbake.mesh.arrays import unit_exponent
 from uvbake.mesh.topology import face_adjacency
 
 #: More separate pieces than this is refused up front, before any work: each piece becomes at least
-#: one chart and none is dropped silently. Set at 1,000 when 2,000 one-triangle pieces took 358 s; with
-#: charts solved and packed in batches, 2,000 leaf cards take 14 s, 5,000 one-triangle pieces 42 s and
-#: 3,000 closed parts (6,000 charts) 60 s (docs/decisions/atlas-speed.md, 2026-12-02 fourth session).
+#: one chart and none is dropped silently; at this many, packing alone takes tens of seconds (the
+#: measurements: docs/decisions/atlas-speed.md).
 MAX_PIECES = 5000
 
 BAKE_MODES = (None, "checker", "vertex-colors")

@@ -193,8 +193,8 @@ def _bbox_pairs(corners, live, disjoint=None, confirm=None, max_pairs=None):
     if span == 0.0:
         return np.zeros((0, 2), np.int64), True, 0
     # cells about as wide as a typical box's geometric mean side: a sliver's box is long and thin, and
-    # cells its long side wide would hold every sliver lying beside it (a CAD cylinder's strips: 1,229
-    # boxes in one cell, 7.9 million raw pairs for 4,803 candidates); the loop below bounds the cells
+    # cells as wide as its long side would hold every sliver lying beside it (measured in
+    # docs/decisions/atlas-speed.md); the loop below bounds the cells
     cell = max(float(np.median(np.sqrt(wh[:, 0] * wh[:, 1]))), span / 65536.0)
     while True:
         c0 = np.floor((bmin[faces] - lo) / cell).astype(np.int64)
