@@ -311,6 +311,30 @@ def test_two_charts_stacked():
     assert_consistent(r)
 
 
+def test_count_covered_false_skips_the_raster_only_where_no_pair_overlaps():
+    """count_covered=False: a layout without overlapping pairs reports covered_px None and the same
+    verdict; one with pairs runs the raster as before and reports the same pixel figures."""
+    V, F = grid(4, 0.1, 0.1, 0.5)
+    W, G = grid(4, 0.3, 0.2, 0.5)
+    apart = np.concatenate([V[F], W[G] + [0.5, 0.3]])             # side by side, 0.1 apart
+    stacked = np.concatenate([V[F], W[G]])
+    for atlas, ok in ((apart, True), (stacked, False)):
+        full = validate(atlas, resolution_px=256)
+        lean = validate(atlas, resolution_px=256, count_covered=False)
+        assert full.valid is lean.valid is ok
+        np.testing.assert_array_equal(lean.overlap_pairs, full.overlap_pairs)
+        np.testing.assert_array_equal(lean.overlap_subpixel, full.overlap_subpixel)
+        assert lean.overlap_px == full.overlap_px
+        assert lean.overlap_area_fraction == full.overlap_area_fraction
+        assert lean.summary() == full.summary()
+        if ok:
+            assert lean.covered_px is None and "raster" not in lean.timings_s
+            assert full.covered_px > 0 and lean.to_dict()["covered_px"] is None
+        else:
+            assert lean.covered_px == full.covered_px > 0
+            assert lean.overlap_px > 0
+
+
 def test_identical_stacked_charts_overlap_everywhere():
     V, F = grid(3, 0.2, 0.2, 0.6)
     r = validate(np.concatenate([V[F], V[F]]), resolution_px=128)

@@ -81,6 +81,7 @@ def validate(
     resolution_px: int = 2048,
     image_path: str | os.PathLike[str] | None = None,
     allow_subpixel: bool = False,
+    count_covered: bool = True,
 ) -> ValidationReport:
     """Check that a UV layout is bijective: no flipped triangle, no two triangles overlapping.
 
@@ -105,6 +106,11 @@ def validate(
     allow_subpixel : bool, default False
         When True, overlaps that claim no common pixel centre do not make the layout invalid (they
         are still reported).
+    count_covered : bool, default True
+        Count the pixels the layout covers even when no pair overlaps. The raster pass that counts them
+        only otherwise tells sub-pixel overlaps from others; with False it runs only when the exact pass
+        confirms an overlapping pair (or ``image_path`` is given), and a layout without one reports
+        ``covered_px`` None. The verdict is the same either way.
 
     Returns
     -------
@@ -138,21 +144,26 @@ def validate(
     flipped_mask = (sign != chart_sign[chart]) | degenerate_mask
     t = lap("orientation", t)
 
-    # ---- raster pass ----------------------------------------------------------------------------
-    origin, pixel_size, rows, cols = _raster_frame(corners, atlas, res)
-    Xi, Yi = _fixed_point(corners, origin, pixel_size)
-    notes: list[str] = []
-    spans, pix_keys, pix_of_key, covered_px, raster_complete = _raster_pass(Xi, Yi, rows, cols, m, notes)
-    raster_keys = unique_sorted(pix_keys)
-    t = lap("raster", t)
-
     # ---- exact pass -----------------------------------------------------------------------------
+    notes: list[str] = []
     pairs, bbox_complete, n_cand, n_exact_pairs = _exact_pairs(corners, vid, sign, twin, dup, ~degenerate_mask)
     n_exact += n_exact_pairs
     if not bbox_complete:
         notes.append(f"listing stopped after {len(pairs)} overlapping pairs (the layout is invalid; "
                      "the list is partial)")
     t = lap("candidates", t)
+
+    # ---- raster pass (the pixels of confirmed pairs, the covered count) -------------------------
+    origin, pixel_size, rows, cols = _raster_frame(corners, atlas, res)
+    covered_px: int | None
+    if count_covered or len(pairs) or image_path is not None:
+        Xi, Yi = _fixed_point(corners, origin, pixel_size)
+        spans, pix_keys, pix_of_key, covered_px, raster_complete = _raster_pass(Xi, Yi, rows, cols, m, notes)
+        t = lap("raster", t)
+    else:       # no pair to classify: no pixel of a confirmed pair, whatever the raster would show
+        z = np.zeros(0, np.int64)
+        spans, pix_keys, pix_of_key, covered_px, raster_complete = (), z, z, None, True
+    raster_keys = unique_sorted(pix_keys)
     keys = pairs[:, 0] * m + pairs[:, 1]
     at = np.minimum(np.searchsorted(raster_keys, keys), max(len(raster_keys) - 1, 0))
     subpixel = raster_keys[at] != keys if len(raster_keys) else np.ones(len(keys), bool)
@@ -207,7 +218,7 @@ def validate(
             float(overlap_px / covered_px) if covered_px else (0.0 if spans is not None else float("nan"))
         ),
         overlap_px=int(overlap_px),
-        covered_px=int(covered_px),
+        covered_px=None if covered_px is None else int(covered_px),
         charts=charts,
         chart_ids=chart,
         resolution_px=res,

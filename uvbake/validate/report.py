@@ -93,6 +93,8 @@ class ValidationReport:
         was skipped).
     overlap_px, covered_px : int
         The two counts above. An overlap pixel is claimed by both faces of a confirmed pair.
+        ``covered_px`` is None when ``validate(count_covered=False)`` found no pair and skipped the
+        raster.
     charts : list of ChartVerdict
     chart_ids : (m,) int64
         Chart number of every face.
@@ -122,7 +124,7 @@ class ValidationReport:
     overlap_subpixel: np.ndarray
     overlap_area_fraction: float
     overlap_px: int
-    covered_px: int
+    covered_px: int | None
     charts: list
     chart_ids: np.ndarray
     resolution_px: int
@@ -183,7 +185,7 @@ class ValidationReport:
             "overlap_subpixel": self.overlap_subpixel.tolist(),
             "overlap_area_fraction": frac if np.isfinite(frac) else None,
             "overlap_px": int(self.overlap_px),
-            "covered_px": int(self.covered_px),
+            "covered_px": None if self.covered_px is None else int(self.covered_px),
             "charts": [c.to_dict() for c in self.charts],
             "resolution_px": int(self.resolution_px),
             "grid_shape": [int(s) for s in self.grid_shape],
