@@ -140,7 +140,7 @@ def _spd_solve_once(A, b):
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return cholesky(A, ordering_method="amd")(b)
+            return cholesky(A, ordering_method="amd", mode="simplicial")(b)
     import scipy.sparse.linalg as spla
 
     return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
