@@ -7,8 +7,8 @@ Two passes, both vectorised:
    triangles sharing an edge or a vertex never both claim a pixel centre. The fill rule is a
    symbolic perturbation of each sample point, hence a partition of the plane: a pixel claimed by two
    triangles is covered twice for real (up to the 1/256-pixel snapping), and it is an overlap candidate.
-2. **Exact pass.** Candidate pairs (from the raster and from a spatial hash of bounding boxes, which
-   catches overlaps smaller than a pixel) are confirmed with orientation predicates: float
+2. **Exact pass.** Candidate pairs (from a spatial hash of bounding boxes, which catches overlaps
+   smaller than a pixel too) are confirmed with orientation predicates: float
    determinants with Shewchuk's forward error bound, and exact dyadic-rational arithmetic (Python
    integers in numpy object arrays) for the rare determinants the bound cannot decide. Two triangles
    overlap when their open interiors intersect; by the separating-axis theorem for the Minkowski
@@ -17,6 +17,10 @@ Two passes, both vectorised:
    along collinear edges, are therefore never reported. Most neighbour pairs never reach the
    predicates: faces sharing an edge with consistent orientation, or sharing a vertex whose fan
    winds once, are disjoint by topology alone (see ``_topology_filter``).
+
+The verdict comes from the exact pass alone; the raster pass tells sub-pixel overlaps from others and
+counts pixels. ``validate(count_covered=False)`` (the pipeline's own check) runs the raster only when the
+exact pass confirms a pair: a valid layout skips it.
 
 Massive overlaps (every face mapped onto the whole texture, as "reset" UVs do) would need quadratic
 work; past fixed work budgets the check stops with ``complete=False`` and ``valid=False``, having
