@@ -2,8 +2,8 @@
 
 CHOLMOD (through scikit-sparse, the optional ``cholmod`` extra) analyses the pattern once and then
 refactors A + beta I in place each LM iteration, as a simplicial L D L^T whose pivots D must all be
-positive (the positive-definite test). Without it, SuperLU (scipy) factors each matrix from scratch with a symmetric
-minimum-degree ordering and diagonal pivots only; the matrix is positive definite exactly when every
+positive (the positive-definite test). Without it, SuperLU (scipy) factors each matrix from scratch
+with a symmetric minimum-degree ordering and diagonal pivots only; the matrix is positive definite exactly when every
 pivot is on the diagonal (a zero diagonal pivot makes SuperLU pivot off it) and positive (with a
 symmetric permutation the pivots are those of A = L D L^T, Sylvester's law). Timings: bench/solver.py
 and docs/decisions/linear-solvers.md.
