@@ -6,7 +6,8 @@ Two passes, both vectorised:
    integer fixed-point coordinates (8 sub-pixel bits) with a top-left fill rule, so that two
    triangles sharing an edge or a vertex never both claim a pixel centre. The fill rule is a
    symbolic perturbation of each sample point, hence a partition of the plane: a pixel claimed by two
-   triangles is covered twice for real (up to the 1/256-pixel snapping), and it is an overlap candidate.
+   triangles is covered twice for real (up to the 1/256-pixel snapping): an overlap pixel once the
+   exact pass confirms the pair, and a pair sharing none is a sub-pixel overlap.
 2. **Exact pass.** Candidate pairs (from a spatial hash of bounding boxes, which catches overlaps
    smaller than a pixel too) are confirmed with orientation predicates: float
    determinants with Shewchuk's forward error bound, and exact dyadic-rational arithmetic (Python
