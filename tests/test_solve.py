@@ -238,3 +238,30 @@ def test_a_batch_with_a_degenerate_triangle_is_solved_chart_by_chart(monkeypatch
     for (Vc, Fc), s, r in zip(charts[:4], starts[:4], got[:4]):
         ref = solve_chart((Vc, Fc), SolveOptions(alpha=0.5), s, checked=True)
         assert np.array_equal(r.uv, ref.uv) and "joint" not in r.extra
+
+
+def test_one_blas_thread_limits_every_blas_and_rescans_only_after_an_import():
+    import sys
+    import types
+
+    from uvbake.flatten.solvers import linalg
+
+    cholmod_available()
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        with linalg.one_blas_thread("blas"):
+            inside = _blas_threads()          # a fresh scan: every BLAS loaded, not only the cached ones
+        assert [p for p, _ in inside] == [p for p, _ in before] and all(n == 1 for _, n in inside)
+        assert _blas_threads() == before
+        made = linalg._POOLS
+        with linalg.one_blas_thread("blas"):
+            pass
+        assert linalg._POOLS is made          # no import since: the scan is reused
+        sys.modules["_uvbake_probe"] = types.ModuleType("_uvbake_probe")
+        try:
+            with linalg.one_blas_thread("blas"):
+                assert all(n == 1 for _, n in _blas_threads())
+            assert linalg._POOLS is not made  # an import since: scanned again
+        finally:
+            del sys.modules["_uvbake_probe"]
+        assert _blas_threads() == before

@@ -172,14 +172,11 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
     -------
     UnwrapResult
     """
-    from threadpoolctl import threadpool_limits
+    from uvbake.flatten.solvers.linalg import one_blas_thread
 
-    from uvbake.flatten.solvers.linalg import cholmod_available
-
-    cholmod_available()          # load CHOLMOD's BLAS first, so the limit below reaches it too
     # One BLAS thread in every stage: charts are solved in parallel threads, and two BLAS pools
     # spinning against each other on two cores cost camelhead's whole command 24.0 s against 20.6 s.
-    with threadpool_limits(limits=1):
+    with one_blas_thread():
         return _unwrap(source, alpha=alpha, init=init, backend=backend, tol=tol, max_iter=max_iter, seed=seed,
                        face_labels=face_labels, texture_size_px=texture_size_px, gutter_px=gutter_px, bake=bake,
                        auto_cut=auto_cut, repair=repair, weld=weld, guarantee=guarantee, max_stretch=max_stretch,

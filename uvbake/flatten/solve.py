@@ -24,7 +24,7 @@ import contextlib
 import dataclasses
 import os
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor, as_completed
 from typing import Any
 
@@ -40,7 +40,7 @@ from uvbake.flatten.options import CONTINUATION_ALPHA, DEFAULTS, SolveOptions, _
 from uvbake.flatten.pinches import pinches_end_to_end, welded
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
-from uvbake.flatten.solvers.linalg import cholmod_available, make_solver
+from uvbake.flatten.solvers.linalg import cholmod_available, make_solver, one_blas_thread
 from uvbake.flatten.solvers.lm import levenberg_marquardt
 from uvbake.flatten.solvers.result import ParamResult, SolveResult
 from uvbake.flatten.solvers.trust import trust_region
@@ -65,14 +65,6 @@ def limit_blas_threads() -> None:
     """
     cholmod_available()          # load CHOLMOD's BLAS first, so the limit reaches it too
     threadpool_limits(limits=1, user_api="blas")
-
-
-@contextlib.contextmanager
-def _one_blas_thread() -> Iterator[None]:
-    # camelhead, 11 LM iterations: 3.1 s with two BLAS threads each, 1.55 s with one
-    cholmod_available()
-    with threadpool_limits(limits=1, user_api="blas"):
-        yield
 
 
 def _run_backend(energy: DistortionEnergy, start: np.ndarray, options: SolveOptions, max_iter: int,
@@ -316,7 +308,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, *, alpha: float = DEFAULTS.alpha,
                            certificate=certificate, fill_holes=fill_holes)
     if callback is not None and not callable(callback):
         raise InputError(f"callback={callback!r} is not callable; pass a function or None")
-    with _one_blas_thread():
+    with one_blas_thread("blas"):
         return solve_chart((V, F, name), options, uv0, callback)
 
 
@@ -380,7 +372,8 @@ def parameterize_charts(charts: Sequence[Chart | Sequence[Any]], *, workers: int
 
     jobs = _jobs(items, options, starts, checked)
     # BLAS pools are process-wide: limit them once here, around every solve of this process
-    with _one_blas_thread():
+    # camelhead, 11 LM iterations: 3.1 s with two BLAS threads each, 1.55 s with one
+    with one_blas_thread("blas"):
         if executor is None and (workers <= 1 or len(jobs) <= 1 or (not chosen and _few_large(items))):
             for job in sorted(jobs):
                 for i, res in zip(job, _solve_job(items, job, options, starts, callback, checked)):

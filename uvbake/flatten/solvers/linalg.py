@@ -11,7 +11,9 @@ and docs/decisions/linear-solvers.md.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+import sys
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import scipy.sparse as sp
@@ -32,6 +34,29 @@ def cholmod_available() -> bool:
     except ImportError:
         return False
     return True
+
+
+# (len(sys.modules) when made, threadpoolctl.ThreadpoolController): one_blas_thread's cached scan
+_POOLS: tuple | None = None
+
+
+@contextlib.contextmanager
+def one_blas_thread(user_api: str | None = None) -> Iterator[None]:
+    """One thread in every BLAS (``user_api="blas"``) or native pool (None) loaded, restored on exit.
+
+    threadpoolctl's ``threadpool_limits`` reads /proc/self/maps at every call to find the pools (2-3 ms
+    once Open3D is loaded, twice per unwrap); the scan is kept and redone only when a module was
+    imported since, which is how a new BLAS comes in (numpy, scipy and CHOLMOD load theirs on import).
+    """
+    from threadpoolctl import ThreadpoolController
+
+    global _POOLS
+    cholmod_available()          # CHOLMOD's BLAS loaded first, so the limit reaches it too
+    pools = _POOLS
+    if pools is None or pools[0] != len(sys.modules):
+        pools = _POOLS = (len(sys.modules), ThreadpoolController())
+    with pools[1].limit(limits=1, user_api=user_api):
+        yield
 
 
 def make_solver(pattern: sp.spmatrix, *, method: str = "auto") -> CholmodSolver | SuperLUSolver:
