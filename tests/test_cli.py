@@ -99,7 +99,7 @@ def test_default_output_sits_beside_the_input(scene):
     (["{scene}", "-o", "{tmp}/nowhere/out.obj"], "does not exist"),
     (["{empty}"], "empty"),
     (["{text}"], "{text_name}"),
-    (["{nan}"], "NaN"),
+    (["{nan}"], "1 vertex has NaN or infinite coordinates (vertices 5)"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, message, scene, tmp_path, capsys):
     empty = tmp_path / "empty.ply"

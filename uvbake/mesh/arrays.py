@@ -38,7 +38,8 @@ def check_arrays(V: ArrayLike, F: ArrayLike, *, where: str = "mesh") -> tuple[np
         raise InputError(f"{where}: triangles {_list(bad)} index vertices outside 0..{len(V) - 1}; fix the face list")
     bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
     if len(bad):
-        raise InputError(f"{where}: {len(bad)} vertices have NaN or infinite coordinates (vertices {_list(bad)}); "
+        have = "vertex has" if len(bad) == 1 else "vertices have"
+        raise InputError(f"{where}: {len(bad)} {have} NaN or infinite coordinates (vertices {_list(bad)}); "
                          "remove or repair them before unwrapping")
     return V, F
 
