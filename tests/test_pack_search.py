@@ -204,6 +204,36 @@ def test_the_rotation_chosen_has_the_lowest_top_edge_whatever_order_rotations_ar
     assert np.array_equal(a.offset, b.offset) and np.array_equal(a.rotation, b.rotation)
 
 
+def test_equal_footprints_of_a_chart_are_searched_once_and_the_layout_is_unchanged(monkeypatch):
+    """A square's four quarter turns are one footprint: one search per placement, not four. The layout
+    is the one searching every rotation gives (an equal footprint finds the same position, and its
+    larger rotation index loses the tie)."""
+    import uvbake.atlas.shapepack as sp
+
+    rng = np.random.default_rng(5)
+    uvs, faces = mixed_charts(3, n=6)
+    for s in rng.uniform(0.5, 2.0, 14):             # axis-aligned squares and 2:1 rectangles
+        w = s * (2.0 if len(uvs) % 2 else 1.0)
+        uvs.append(np.array([[0.0, 0.0], [w, 0.0], [w, s], [0.0, s]]))
+        faces.append(np.array([[0, 1, 2], [0, 2, 3]]))
+    angles = [np.array([0.0, 0.4])] * 6 + [np.zeros(1)] * 14
+    calls = []
+    find = sp._Atlas.find
+    monkeypatch.setattr(sp._Atlas, "find", lambda self, runs, *a, **k: calls.append(id(runs)) or find(self, runs, *a, **k))
+    once = ShapePacker(uvs, faces, angles)
+    a = once.pack(6.0, 96, None, 2)
+    searched = len(calls)
+    distinct = sum(len({c[4] for c in once._cands[i]}) for i in range(len(uvs)))
+    every = sum(len(once._cands[i]) for i in range(len(uvs)))
+    assert searched == distinct < every - 14         # each square saves three searches at least
+    calls.clear()
+    monkeypatch.setattr(sp.ShapePacker, "_tried", lambda self, i, c: sorted(range(len(c)), key=lambda r: (c[r][0].shape[0], r)))
+    b = ShapePacker(uvs, faces, angles).pack(6.0, 96, None, 2)
+    assert len(calls) == every
+    assert np.array_equal(a.offset, b.offset) and np.array_equal(a.rotation, b.rotation)
+    assert a.height_used == b.height_used
+
+
 def test_a_strip_taller_than_the_atlas_is_never_returned_as_a_packing():
     """At full resolution (c = 1) a layout whose box exceeds the atlas cannot be scaled up into it: None
     (the fuzz test found a 64-texel atlas with a vertex at u = 1.05 before this was checked)."""

@@ -342,6 +342,7 @@ class ShapePacker:
             if not any(np.array_equal(o, q) for q in self.orders):
                 self.orders.append(o)
         self._density, self._cands, self._dilated = None, {}, {}          # candidates at the last density
+        self._order_tried: dict = {}
         self._hull_idx, self._hulls = hulls, None
 
     def hull_points(self) -> tuple[np.ndarray, np.ndarray]:
@@ -371,7 +372,7 @@ class ShapePacker:
         (the width search packs one density several times). Every chart's candidates at a new density
         are made together (footprints(), _raw_runs_many(), _runs_many())."""
         if density != self._density:
-            self._density, self._dilated = density, {}
+            self._density, self._dilated, self._order_tried = density, {}, {}
             self._cands = self._all_candidates(density)
         return self._cands[i]
 
@@ -410,6 +411,18 @@ class ShapePacker:
                 # a quarter turn counter-clockwise: (x, y) -> (h - y, x) keeps texels on texels
                 t = np.array([f[k].shape[0] - t[1], t[0]])
         return cands
+
+    def _tried(self, i, cands):
+        """Chart i's candidates in the order pack() tries them, the flattest first (ties by index), each
+        footprint once, as its first candidate: an equal footprint finds the same position (or, bounded
+        by a better top edge, none), and its larger index never wins the tie (a square card's four
+        quarter turns are one footprint: 72 % of 500 cards' trials). Kept while the density is the same."""
+        if i not in self._order_tried:
+            first: dict = {}
+            for r, c in enumerate(cands):          # a chart's few rotations
+                first.setdefault(c[4], r)
+            self._order_tried[i] = sorted(first.values(), key=lambda r: (cands[r][0].shape[0], r))
+        return self._order_tried[i]
 
     def _dilate_cached(self, sid, fp, g):
         """The dilation of footprint number ``sid`` (equal footprints share one) by the gutter ``g``."""
@@ -463,7 +476,7 @@ class ShapePacker:
             cands = self._cached(i, density)
             # the flattest rotations first: their top edges bound the search of the others (the lowest
             # top edge wins, ties by y, x, rotation index, so the order tried does not change the result)
-            for r in sorted(range(len(cands)), key=lambda r: (cands[r][0].shape[0], r)):
+            for r in self._tried(i, cands):
                 fp, theta, t, runs, sid = cands[r]
                 pos = atlas.find(runs, fp.shape[0], fp.shape[1], top_bound=None if best is None else best[0][0],
                                  start=low.get(sid, 0))
