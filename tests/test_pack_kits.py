@@ -5,7 +5,7 @@ import pytest
 
 from uvbake.atlas import pack as pack_module
 from uvbake.atlas.distance import min_chart_distance
-from uvbake.atlas.pack import pack_charts
+from uvbake.atlas.pack import pack_charts, rotation_2d
 from uvbake.atlas.shapepack import ShapePacker
 
 
@@ -155,22 +155,54 @@ def test_tiny_charts_get_their_last_trial_on_a_raster_twice_as_fine_denser_and_a
     assert min(q.min() for q in finer.uv) * 1024 >= 2 * (1 - 1e-9) and max(q.max() for q in finer.uv) <= 1
 
 
-def test_a_finer_last_trial_that_does_not_fit_leaves_the_atlas_rasters_trial_to_decide(monkeypatch):
+def _recorded(packer, monkeypatch):
+    """Every strip packing of ``packer``, as (density, strip width, packing) in call order."""
+    calls = []
+    real = packer.pack
+    monkeypatch.setattr(packer, "pack", lambda s, w, *a, **k: calls.append((s, w, real(s, w, *a, **k))) or calls[-1][2])
+    return calls
+
+
+def test_a_finer_last_trial_that_does_not_fit_aims_the_atlas_rasters_trial_by_its_height(monkeypatch):
     from uvbake.atlas import fit
 
     uvs, faces = _kit(200)
-    packer = ShapePacker(uvs, faces, [np.zeros(1)] * len(uvs))
     kw = dict(coarse_px=512, coarse_tol=0.04, fine_packs=1, fine_side=2048)
-    plain = fit.fit_scale(packer, 1024, 1024, 4, **kw)
-    monkeypatch.setattr(fit, "_finer_gain", lambda *a: 3.0)         # aimed far too high: it cannot fit
-    tried = []
-    real = fit._twice_finer
-    monkeypatch.setattr(fit, "_twice_finer", lambda *a: tried.append(real(*a)) or tried[-1])
+    coarse = fit.fit_scale(ShapePacker(uvs, faces, [np.zeros(1)] * len(uvs)), 1024, 1024, 4,
+                           **(kw | dict(fine_packs=0)))
+    packer = ShapePacker(uvs, faces, [np.zeros(1)] * len(uvs))
+    calls = _recorded(packer, monkeypatch)
+    real_gain = fit._finer_gain
+    first = iter([1.0])               # the finer trial aimed with no gain: it needs 2,080 of 2,048 rows
+    monkeypatch.setattr(fit, "_finer_gain", lambda *a: next(first, None) or real_gain(*a))
+    p = fit.fit_scale(packer, 1024, 1024, 4, finer_last=True, **kw)
+    widths = [w for _, w, _ in calls]
+    i = widths.index(2048)
+    s, _, q = calls[i]
+    assert not (q.complete and q.height_used <= 2048)     # it did not fit
+    held = 0.5 * s * np.sqrt(2048 / q.height_used)        # what its height says the finer raster holds
+    aim = fit.AIM_MARGIN * held / real_gain(packer, held, 4)
+    assert widths[i + 1:] == [1024] and calls[i + 1][0] == pytest.approx(aim, rel=1e-12)
+    assert p.density >= coarse.density
+    placed = [p.density * (uv @ rotation_2d(r).T) + o for uv, r, o in zip(uvs, p.rotation, p.offset)]
+    assert min_chart_distance(placed, faces) >= 4 * (1 - 1e-9)
+
+
+def test_a_finer_last_trial_far_from_fitting_keeps_the_coarse_layout_without_another_trial(monkeypatch):
+    from uvbake.atlas import fit
+
+    uvs, faces = _kit(200)
+    kw = dict(coarse_px=512, coarse_tol=0.04, fine_packs=1, fine_side=2048)
+    coarse = fit.fit_scale(ShapePacker(uvs, faces, [np.zeros(1)] * len(uvs)), 1024, 1024, 4,
+                           **(kw | dict(fine_packs=0)))
+    packer = ShapePacker(uvs, faces, [np.zeros(1)] * len(uvs))
+    calls = _recorded(packer, monkeypatch)
+    monkeypatch.setattr(fit, "_finer_gain", lambda *a: 3.0)   # aimed 3x too high; its height says a third
     failed = fit.fit_scale(packer, 1024, 1024, 4, finer_last=True, **kw)
-    assert tried == [None]                                          # the finer trial ran, and did not fit
-    assert failed.density == plain.density
-    np.testing.assert_array_equal(failed.offset, plain.offset)
-    np.testing.assert_array_equal(failed.rotation, plain.rotation)
+    assert [w for _, w, _ in calls][-1] == 2048            # the finer trial was the last: none on the atlas's raster
+    assert failed.density == coarse.density
+    np.testing.assert_array_equal(failed.offset, coarse.offset)
+    np.testing.assert_array_equal(failed.rotation, coarse.rotation)
 
 
 def test_the_finer_rasters_gain_is_half_a_texel_a_side_of_the_median_chart_and_its_gutter():
