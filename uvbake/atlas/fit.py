@@ -141,7 +141,7 @@ def fit_scale(packer: ShapePacker, width: int, height: int, gutter_px: int, *, c
 
 #: When the trial on the twice finer raster fails, the atlas-raster trial after it aims this far under
 #: the density the failed trial's height says the finer raster holds, taken back to the atlas's raster
-#: (:func:`_finer_gain`); 0.99 packed 2,000 leaf cards at 63.0 %, 0.995 at 63.6 (docs/decisions/pack.md).
+#: (:func:`_finer_gain`; measured in docs/decisions/pack.md).
 AIM_MARGIN = 0.995
 
 

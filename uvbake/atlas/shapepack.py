@@ -416,7 +416,7 @@ class ShapePacker:
         """Chart i's candidates in the order pack() tries them, the flattest first (ties by index), each
         footprint once, as its first candidate: an equal footprint finds the same position (or, bounded
         by a better top edge, none), and its larger index never wins the tie (a square card's four
-        quarter turns are one footprint: 72 % of 500 cards' trials). Kept while the density is the same."""
+        quarter turns are one footprint). Kept while the density stays the same."""
         if i not in self._order_tried:
             first: dict = {}
             for r, c in enumerate(cands):          # a chart's few rotations
