@@ -192,10 +192,8 @@ def _finer(packer, width, height, g, lo, p, k, f, top, fine_packs, rel_tol, twic
             aim = AIM_MARGIN * held / _finer_gain(packer, held, g)
     # the coarse layout on the fine raster: scaled by k, still valid
     best = ShapePacking(density=lo * k, rotation=p.rotation, offset=p.offset * k, height_used=p.height_used * k)
-    if aim <= lo * k * (1 + rel_tol):
-        return ShapePacking(density=best.density * f, rotation=best.rotation, offset=best.offset * f,
-                            height_used=best.height_used * f)
-    _, p = _search(packer, width // f, height // f, -(-g // f), lo * k, best, top / f, aim, fine_packs, rel_tol)
+    p = best if aim <= lo * k * (1 + rel_tol) else _search(packer, width // f, height // f, -(-g // f), lo * k, best,
+                                                           top / f, aim, fine_packs, rel_tol)[1]
     return ShapePacking(density=p.density * f, rotation=p.rotation, offset=p.offset * f, height_used=p.height_used * f,
                         complete=p.complete)
 

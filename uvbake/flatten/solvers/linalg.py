@@ -45,8 +45,8 @@ def one_blas_thread(user_api: str | None = None) -> Iterator[None]:
     """One thread in every BLAS (``user_api="blas"``) or native pool (None) loaded, restored on exit.
 
     threadpoolctl's ``threadpool_limits`` reads /proc/self/maps at every call to find the pools, a few
-    ms (docs/decisions/atlas-speed.md); the scan is kept and redone only when a module was imported
-    since, which is how a new BLAS comes in (numpy, scipy and CHOLMOD load theirs on import).
+    ms (docs/decisions/atlas-speed.md); the scan is kept and redone whenever the number of loaded modules
+    changed, as it does when a new BLAS comes in (numpy, scipy and CHOLMOD load theirs on import).
     """
     from threadpoolctl import ThreadpoolController
 
