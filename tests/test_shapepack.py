@@ -390,6 +390,42 @@ def test_hulls_of_many_sets_at_once_are_those_of_each_set_alone():
     np.testing.assert_array_equal(min_area_rects(sets), np.array([min_area_rect(P) for P in sets]))
 
 
+def test_rectangles_of_hulls_of_one_size_are_found_together_bit_for_bit(monkeypatch):
+    """min_area_rects measures hulls of one size in one batch (a foliage mesh's thousands of cards):
+    every rectangle is bit for bit min_area_rect's, for squares at any angle, regular and random
+    polygons, tiny and huge scales, collinear and coincident points; only the hulls the batch leaves
+    (degenerate ones, and larger than _BATCH_HULL) are measured one at a time."""
+    from uvbake.atlas import maxrects
+    from uvbake.atlas.maxrects import chart_hulls, min_area_rect, min_area_rects
+
+    rng = np.random.default_rng(21)
+    sets = []
+    for k in range(600):
+        t = rng.uniform(0, 2 * np.pi)
+        R = np.array([[np.cos(t), np.sin(t)], [-np.sin(t), np.cos(t)]])
+        scale = 10.0 ** rng.integers(-5, 5)
+        if k % 3 == 0:                                  # a leaf card
+            P = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) * rng.uniform(0.1, 0.4)
+        elif k % 3 == 1:                                # a regular polygon of 5-8 sides
+            n = int(rng.integers(5, 9))
+            a = 2 * np.pi * np.arange(n) / n
+            P = np.column_stack([np.cos(a), np.sin(a)])
+        else:                                           # random points: hulls of many sizes
+            P = rng.normal(size=(int(rng.integers(3, 400)), 2)) * [1.0, rng.uniform(0.05, 1.0)]
+        sets.append(P @ R * scale + rng.uniform(-5, 5, 2) * scale)
+    sets += [np.zeros((4, 2)), np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]),
+             np.array([[0.0, 0.0], [2.0, 1.0]]), np.array([[5.0, 5.0]])]
+    alone = []
+    real = maxrects._rect_of_hull
+    monkeypatch.setattr(maxrects, "_rect_of_hull", lambda H: alone.append(len(H)) or real(H))
+    got = min_area_rects(sets)
+    monkeypatch.setattr(maxrects, "_rect_of_hull", real)
+    want = np.array([min_area_rect(P) for P in sets])
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))   # bit for bit, signed zeros too
+    sizes = [len(h) for h in chart_hulls(sets)]
+    assert len(alone) <= sum(s < 3 or s > maxrects._BATCH_HULL for s in sizes) + 4
+    assert sizes.count(4) >= 200 and len(alone) < 60
+
 def test_calipers_find_the_minimum_area_rectangle_of_every_hull():
     from uvbake.atlas.maxrects import _hull_points, min_area_rect
 
