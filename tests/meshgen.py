@@ -74,3 +74,12 @@ def open_tube(nu=24, nv=60, *, radius=0.2, length=4.0, bend=None):
     if bend is not None:
         x, z = (bend + x) * np.cos(z / bend) - bend, (bend + x) * np.sin(z / bend)
     return np.stack([x, y, z], -1).reshape(-1, 3), F.astype(np.int64)
+
+
+def helical_strip(turns=1.5, n_theta=90, n_r=4, pitch=0.04):
+    """A narrow ramp winding 1.5 times: its flattening wants to wind 540 degrees and overlap itself."""
+    st, F = grid(n_theta, n_r)
+    th = 2 * np.pi * turns * st[:, 0]
+    r = 1.0 + 0.25 * st[:, 1]
+    V = np.column_stack([r * np.cos(th), r * np.sin(th), pitch * th])
+    return V, F

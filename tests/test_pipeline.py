@@ -8,16 +8,7 @@ import pytest
 import uvbake
 from uvbake.atlas.pipeline import unwrap
 
-from meshgen import bumpy_disk, grid
-
-
-def helical_strip(turns=1.5, n_theta=90, n_r=4, pitch=0.04):
-    """A narrow ramp winding 1.5 times: its flattening wants to wind 540 degrees and overlap itself."""
-    st, F = grid(n_theta, n_r)
-    th = 2 * np.pi * turns * st[:, 0]
-    r = 1.0 + 0.25 * st[:, 1]
-    V = np.column_stack([r * np.cos(th), r * np.sin(th), pitch * th])
-    return V, F
+from meshgen import bumpy_disk, grid, helical_strip
 
 
 def assert_valid_atlas(res):

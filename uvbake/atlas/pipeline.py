@@ -208,6 +208,8 @@ class _Run:
     n_charts_input: int = 0
     results: list = field(default_factory=list)
     splits: list = field(default_factory=list)
+    instances: Any = None                  # uvbake.atlas.instances.Instances, when pieces repeat
+    instances_plan: Any = None             # uvbake.atlas.instances.Plan: what the copies will get
 
 
 def _unwrap(source, **opts):
@@ -229,7 +231,7 @@ def _unwrap(source, **opts):
                                                                              opts["max_iter"]))
     _stage_load(run, source)
     _stage_charts(run)
-    _check_room(len(run.charts), opts)
+    _check_room(run.n_charts_input, opts)
     _stage_solve(run)
     packed, corner_uv, chart_ids, verdict = _pack_and_validate(run, {k: opts[k] for k in (
         "texture_size_px", "gutter_px", "texel_density", "mip_levels")})
@@ -302,11 +304,7 @@ def _stage_charts(run):
     opts = run.opts
     t = time.perf_counter()
     if opts["guarantee"]:
-        from uvbake.atlas.charting import make_charts
-
-        run.charts, run.starts, run.chart_log = make_charts(
-            run.V, run.F, run.labels, max_stretch=opts["max_stretch"], max_charts=opts["max_charts"],
-            auto_cut=opts["auto_cut"], progress=run.note, pinch_keys=run.pinch_keys)
+        _make_charts(run)
     else:
         from uvbake.atlas.charting import disk_charts
 
@@ -316,8 +314,29 @@ def _stage_charts(run):
         run.starts, run.chart_log = None, dict(cuts=cuts, budget_cuts=[], over_budget=[], conformal_solves=0,
                                                     conformal_triangles=0)
         run.note("charts", len(run.charts), len(run.charts))
-    run.n_charts_input = len(run.charts)
+    run.n_charts_input = len(run.charts) + (0 if run.instances is None else run.instances_plan.charts)
     run.timings["charts_s"] = time.perf_counter() - t
+
+
+def _make_charts(run):
+    """The budget's charting (uvbake.atlas.charting.make_charts), of each piece's original only when
+    pieces repeat (uvbake.atlas.instances; not with a chart or split budget, which count every chart)."""
+    from functools import partial
+
+    from uvbake.atlas.charting import make_charts
+
+    opts = run.opts
+    make = partial(make_charts, max_stretch=opts["max_stretch"], max_charts=opts["max_charts"],
+                   auto_cut=opts["auto_cut"], progress=run.note)
+    if opts["max_charts"] is None and opts["max_splits"] is None:
+        from uvbake.atlas.instances import chart_originals, find_instances
+
+        run.instances = find_instances(run.V, run.F, run.labels, run.pinch_keys)
+        if run.instances is not None:
+            run.charts, run.starts, run.chart_log, run.instances_plan = chart_originals(
+                run.instances, run.V, run.labels, run.pinch_keys, make)
+            return
+    run.charts, run.starts, run.chart_log = make(run.V, run.F, run.labels, pinch_keys=run.pinch_keys)
 
 
 def _stage_solve(run):
@@ -331,6 +350,11 @@ def _stage_solve(run):
         run.charts, run.results, run.splits = solve_valid(
             run.charts, run.starts, kwargs, max_stretch=opts["max_stretch"], workers=opts["workers"],
             max_splits=opts["max_splits"], note=run.note, pinch_keys=run.pinch_keys)
+        if run.instances is not None:              # every copy's charts: its original's, maps scaled
+            from uvbake.atlas.instances import add_copies
+
+            run.charts, run.results, run.splits = add_copies(run.instances, run.instances_plan, run.V, run.charts,
+                                                             run.results, run.splits)
         for c, r in zip(run.charts, equalise_densities(run.charts, run.results)):
             snap_copies(c, r)
     else:
@@ -378,6 +402,7 @@ def _report(run, corner_uv, packed, verdict):
         "budget_cuts": log["budget_cuts"],
         "over_budget": log["over_budget"],
         "splits": run.splits,
+        "instance_copies": 0 if run.instances is None else run.instances.copies,
         "pinches_welded": _pinches_welded(run),
         "seam_length_added": float(sum(c["seam_length"] for c in log["cuts"])
                                    + sum(c.get("seam_length", 0.0) for c in log["budget_cuts"])

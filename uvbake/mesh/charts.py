@@ -172,6 +172,21 @@ def _disk_tests(charts, k):
     return ok & disk, ok & ~disk
 
 
+def chart_numbers(F: np.ndarray, n: int, labels: np.ndarray) -> np.ndarray:
+    """(m,) each face's chart in :func:`split_charts`'s numbering: faces of one label joined by edges
+    are one chart; charts ordered by (label, first face)."""
+    m = len(F)
+    fi, fj, _ = face_adjacency(F, n)
+    keep = labels[fi] == labels[fj]
+    _, comp = components(m, fi[keep], fj[keep])
+    first = np.full(comp.max() + 1, m)
+    np.minimum.at(first, comp, np.arange(m))
+    chart_order = np.lexsort((first, labels[first]))
+    rank = np.empty_like(chart_order)
+    rank[chart_order] = np.arange(len(chart_order))
+    return rank[comp]
+
+
 def split_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
                  check: bool = True) -> list[Chart]:
     """Split a mesh into charts: one per segment label and edge-connected component.
@@ -200,18 +215,7 @@ def split_charts(V: ArrayLike, F: ArrayLike, labels: ArrayLike | None = None, *,
             raise InputError(f"segment labels have shape {labels.shape} and type {labels.dtype}; "
                              f"pass one integer per triangle ({m})")
         named = True
-    # faces are adjacent when they share an edge and a label
-    fi, fj, _ = face_adjacency(F, len(V))
-    keep = labels[fi] == labels[fj]
-    _, comp = components(m, fi[keep], fj[keep])
-    # order charts by (label, first face)
-    first = np.full(comp.max() + 1, m)
-    np.minimum.at(first, comp, np.arange(m))
-    chart_label = labels[first]
-    chart_order = np.lexsort((first, chart_label))
-    rank = np.empty_like(chart_order)
-    rank[chart_order] = np.arange(len(chart_order))
-    comp = rank[comp]
+    comp = chart_numbers(F, len(V), labels)
     faces_by_chart = np.argsort(comp, kind="stable")
     bounds = np.searchsorted(comp[faces_by_chart], np.arange(comp.max() + 2))
     charts = []
