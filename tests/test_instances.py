@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import uvbake
-from uvbake.atlas.instances import REL_TOL, copy_records, find_instances
+from uvbake.atlas.instances import copy_records, find_instances
 from uvbake.io.load import load_mesh
 
 from meshgen import helical_strip, torus
@@ -38,14 +38,18 @@ def test_copies_turned_scaled_and_moved_are_found_and_nothing_else():
               (2.0 * T @ _turn(2).T - [3.0, 4.0, 0], F),           # 4: a copy at twice the size
               (noisy + [0, 0, 7.0], F),                            # 5: not a copy (noise)
               (S @ _turn(4).T * 3.0, G),                           # 6: the strip's copy
-              (T + [9.0, 9.0, 9.0], np.roll(F, 1, axis=0))]        # 7: the same torus, faces listed otherwise
+              (T + [9.0, 9.0, 9.0], np.roll(F, 1, axis=0)),        # 7: the same torus, faces listed otherwise
+              # 8: a small copy far out, its coordinates stored as float32 (as PLY and glTF hold them):
+              # similar only to that rounding, 2e-4 of its size
+              ((0.1 * T @ _turn(8).T + 1000.0).astype(np.float32).astype(np.float64), F)]
     inst = find_instances(*_kit(pieces))
-    assert inst is not None and inst.copies == 3
-    np.testing.assert_array_equal(inst.original, [0, 0, 2, 3, 0, 5, 2, 7])
+    assert inst is not None and inst.copies == 4
+    np.testing.assert_array_equal(inst.original, [0, 0, 2, 3, 0, 5, 2, 7, 0])
     np.testing.assert_allclose(inst.scale[[1, 4, 6]], [0.5, 2.0, 3.0], rtol=1e-12)
+    assert inst.scale[8] == pytest.approx(0.1, rel=1e-3)
     # the mesh of originals has every piece but the copies
     V, F2, *_ = inst.reduced(_kit(pieces)[0], None, None)
-    assert len(F2) == 5 * len(F) + len(G) - len(F) and len(V) == 4 * len(T) + len(S)
+    assert len(F2) == 4 * len(F) + len(G) and len(V) == 4 * len(T) + len(S)
 
 
 def test_labels_pinches_and_lone_pieces_are_never_copies():
@@ -141,4 +145,3 @@ def test_records_are_made_for_each_copy_of_the_piece_they_name():
                        dict(chart="chart 0 (instance 2)", parts=2, seam_length=6.0),
                        dict(chart="chart 2.1 (label 3) (instance 1)", parts=3, seam_length=0.5),
                        dict(chart="chart 2.1 (label 3) (instance 2)", parts=3, seam_length=3.0)]
-    assert REL_TOL < 1e-6

@@ -8,7 +8,8 @@ A kit's or a foliage mesh's pieces often repeat: the same bolt, leaf card or til
 scaled (an instanced glTF scene is flattened that way on loading). Two pieces are instances of one
 another when their triangles list their vertices in the same pattern (the same faces in the same
 order, vertices numbered by first use) with the same labels, and one piece's vertices are the other's
-turned, scaled and moved (a proper rotation, found by Kabsch's method, to REL_TOL of the piece's size).
+turned, scaled and moved (a proper rotation, found by Kabsch's method, to REL_TOL of the piece's size
+beyond float32 rounding of the coordinates).
 Every decision of the charting and of the solve reads lengths, angles and areas in ratio, so a copy's
 charts and maps are its original's, its UVs scaled by the ratio of sizes (the pipeline's density
 equalisation does that); the atlas's validation then checks every copy as it checks every chart.
@@ -26,8 +27,12 @@ from uvbake.mesh.arrays import pieces
 from uvbake.mesh.charts import Chart
 
 #: Largest distance between a piece's vertices and its original's, turned, scaled and moved onto them,
-#: as a share of the piece's size (its largest distance from its centroid) for the two to be instances.
+#: as a share of the piece's size (its largest distance from its centroid) for the two to be instances,
+#: beyond what storing either piece's coordinates in float32 rounds (STORED_ROUNDING of each one's
+#: largest coordinate: PLY, glTF and most OBJ files hold float32, and a small copy far from the origin
+#: is only similar to that rounding).
 REL_TOL = 1e-7
+STORED_ROUNDING = 2.0 ** -23
 #: Originals tried per pattern of faces (the first piece not yet matched each time): a kit of many
 #: pieces of one pattern and different shapes (noisy copies) stops looking after these.
 MAX_ORIGINALS = 8
@@ -178,9 +183,11 @@ def _match(V, verts, vert_start, same, original, scale):
     turned, scaled and moved as its copy (``original``, ``scale``), up to MAX_ORIGINALS first ones."""
     k = int(vert_start[same[0] + 1] - vert_start[same[0]])
     X = V[verts[vert_start[same][:, None] + np.arange(k)]]        # (pieces, k, 3) in local order
+    reach = np.abs(X).max(axis=(1, 2))
     X = X - X.mean(axis=1, keepdims=True)
     size = np.sqrt((X * X).sum(axis=2).max(axis=1))
     left = np.flatnonzero(size > 0)
+    reach[left] /= size[left]                                     # float32 rounding, in units of the size
     for _ in range(MAX_ORIGINALS):                                # one per original tried
         if len(left) < 2:
             return
@@ -193,10 +200,11 @@ def _match(V, verts, vert_start, same, original, scale):
         D[:, 2] = d
         R = np.einsum("pji,pj,pkj->pik", Vt, D, U)                # V diag(1, 1, d) U^T
         err = np.abs(B - np.einsum("kj,pij->pki", A, R)).max(axis=(1, 2))
-        hit = rest[err <= REL_TOL]
+        near = err <= REL_TOL + STORED_ROUNDING * (reach[o] + reach[rest])
+        hit = rest[near]
         original[same[hit]] = same[o]
         scale[same[hit]] = size[hit] / size[o]
-        left = rest[err > REL_TOL]
+        left = rest[~near]
 
 
 @dataclasses.dataclass
