@@ -1,8 +1,9 @@
 """Instances: separate pieces of a mesh that are copies of one another, charted and flattened once.
 
-    inst = find_instances(V, F, labels, pinch_keys)   # None when no piece repeats
-    charts, starts, log = make_charts(*inst.reduced(V, labels, pinch_keys), ...)
-    charts, results, log, splits = inst.expand(V, charts, results, log, splits, named)
+    inst = find_instances(V, F, labels, pinch_keys)           # None when no piece repeats
+    charts, starts, log, plan = chart_originals(inst, V, labels, pinch_keys, make_charts)
+    ...                                                       # the originals' solve
+    charts, results, splits = add_copies(inst, plan, V, charts, results, splits)
 
 A kit's or a foliage mesh's pieces often repeat: the same bolt, leaf card or tile, moved, turned and
 scaled (an instanced glTF scene is flattened that way on loading). Two pieces are instances of one
@@ -10,9 +11,12 @@ another when their triangles list their vertices in the same pattern (the same f
 order, vertices numbered by first use) with the same labels, and one piece's vertices are the other's
 turned, scaled and moved (a proper rotation, found by Kabsch's method, to REL_TOL of the piece's size
 beyond float32 rounding of the coordinates).
-Every decision of the charting and of the solve reads lengths, angles and areas in ratio, so a copy's
-charts and maps are its original's, its UVs scaled by the ratio of sizes (the pipeline's density
-equalisation does that); the atlas's validation then checks every copy as it checks every chart.
+The charting's and the solve's decisions read angles and ratios of lengths and areas, so a copy's
+charts and maps are what its original gets (up to ties that rounding breaks), its UVs scaled by the
+ratio of sizes (the pipeline's density equalisation does that). Validity does not rest on it: a map
+without flips, overlaps or starved triangles on the original has none on a similar copy (orientation
+and overlap are read in the UV plane, texel shares are ratios), and the atlas's validation checks
+every copy as it checks every chart.
 """
 
 from __future__ import annotations
