@@ -196,6 +196,38 @@ def _tips(chart, logf, area, bound):
     return cand[np.argsort(xv[cand], kind="stable")][:MAX_TIPS]
 
 
+#: An interior vertex whose triangles' angles sum to less than this share of a full turn (or more than
+#: its inverse) is a cone's tip (or a saddle) a conformal map cannot flatten without shear.
+CONE_SHARE = 0.75
+
+
+def _cone_tips(chart, uv, logf, area, bound):
+    """Tips to slit open: when the conformal map ``uv`` shears a triangle past the budget (sigma1/sigma2
+    above max_stretch^2, the guarantee's bound) or starves one, the chart's interior vertices whose angle
+    sum is off a full turn by CONE_SHARE (cone tips and saddles, sharpest first), and the tips of the
+    log factor (:func:`_tips`); none when the map keeps both bounds."""
+    from uvbake.atlas.guarantee import shear_ratios
+    from uvbake.mesh.topology import boundary_edges
+
+    sheared = bool(np.any(shear_ratios(chart.V, chart.F, uv) > np.exp(2.0 * bound)))
+    starved = not bool(np.all(np.isfinite(logf)) and logf.min() >= -bound)
+    if not (sheared or starved):
+        return np.zeros(0, np.int64)
+    V, F, n = chart.V, chart.F, len(chart.V)
+    X = V[F]
+    total = np.zeros(n)
+    for k in range(3):                                  # each corner's angle, summed per vertex
+        a, b = X[:, (k + 1) % 3] - X[:, k], X[:, (k + 2) % 3] - X[:, k]
+        cos = np.einsum("ij,ij->i", a, b) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300)
+        np.add.at(total, F[:, k], np.arccos(np.clip(cos, -1.0, 1.0)))
+    inner = np.ones(n, bool)
+    inner[unique_sorted(boundary_edges(F, n))] = False
+    turn = total / (2.0 * np.pi)
+    cone = np.flatnonzero(inner & ((turn < CONE_SHARE) | (turn > 1.0 / CONE_SHARE)))
+    cone = cone[np.argsort(-np.abs(np.log(turn[cone])), kind="stable")]
+    return np.concatenate([cone, np.setdiff1d(_tips(chart, logf, area, bound), cone)])[:MAX_TIPS]
+
+
 def _smoothed(F, n, logf, area):
     """The log factor averaged onto vertices (area-weighted) and back onto triangles."""
     finite = np.isfinite(logf)
@@ -410,6 +442,8 @@ def _decide(st, chart, previous):
     uv, logf = st.conformal(chart, frames)
     ok = bool(np.all(np.isfinite(logf)) and logf.min() >= -st.bound)
     small = len(chart.F) < 2 * MIN_PIECE_FACES
+    if _slit_cone(st, chart, uv, logf, frames[1], previous, small or ok):
+        return
     if ok or small or st.full() or st.solves >= st.budget_solves:
         if not ok:
             reason = "max_charts" if st.full() else "too small to cut" if small else "work cap"
@@ -453,6 +487,28 @@ def _decide(st, chart, previous):
             st.starts.append(inherited)
 
 
+def _slit_cone(st, chart, uv, logf, area, previous, keep):
+    """Slit ``chart`` open from its cone tips (:func:`_cone_tips`) and queue it again; False when the
+    chart would not be kept as it is (``keep``: within the budget or too small to cut; the budget's
+    cuts come next), its map keeps the budget, no tip is found, a work count says stop, or an earlier
+    slit did not pay.
+
+    A cone's tip inside a chart: the discrete conformal map shears its fan past the budget (a spike's
+    six-triangle tip: 35:1) and the solve only makes it worse, where a slit from the tip opens the fan
+    into a wedge that lies flat. A slit adds no chart, so small charts are slit too."""
+    if not keep or st.full() or st.solves >= st.budget_solves or \
+            not (previous is None or logf.min() > previous + np.log(2.0)):
+        return False
+    tips = _cone_tips(chart, uv, logf, area, st.bound)
+    slitted = slit(chart, tips) if len(tips) else None
+    if slitted is None:
+        return False
+    st.budget_cuts.append(dict(chart=chart.name, triangles=int(len(chart.F)), parts=1, slit=True,
+                               seam_length=slitted[1], least_factor=float(np.exp(logf.min())), cone=True))
+    st.queue.insert(0, (slitted[0], float(logf.min())))
+    return True
+
+
 def _halves(chart):
     """``chart`` cut in two like a closed piece (:func:`uvbake.mesh.cut.bisect`), or None when the
     bisection finds no two valid sides (holes can leave a side meeting itself at a vertex)."""
@@ -479,7 +535,12 @@ def _inherited_map(parent, uv, part, area, bound):
     if not np.all(a2 > 0):
         return None
     logf = np.log(a2 / area) - np.log(a2.sum() / area.sum())
-    return sub if logf.min() >= -bound else None
+    if logf.min() < -bound:
+        return None
+    from uvbake.atlas.guarantee import shear_ratios
+
+    # a part holding a cone's tip, sheared by the parent's map, is decided on its own (_cone_tips)
+    return sub if np.all(shear_ratios(part.V, part.F, sub) <= np.exp(2.0 * bound)) else None
 
 
 def _separate_overlaps(st, checked):
