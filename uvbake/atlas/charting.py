@@ -493,9 +493,9 @@ def _slit_cone(st, chart, uv, logf, area, previous, keep):
     cuts come next), its map keeps the budget, no tip is found, a work count says stop, or an earlier
     slit did not pay.
 
-    A cone's tip inside a chart: the discrete conformal map shears its fan past the budget (a spike's
-    six-triangle tip: 35:1) and the solve only makes it worse, where a slit from the tip opens the fan
-    into a wedge that lies flat. A slit adds no chart, so small charts are slit too."""
+    A cone's tip inside a chart: no discrete conformal map lays its fan flat without shearing it past
+    the budget, and the solve only makes it worse, where a slit from the tip opens the fan into a
+    wedge that lies flat (docs/decisions/atlas.md). A slit adds no chart, so small charts are slit too."""
     if not keep or st.full() or st.solves >= st.budget_solves or \
             not (previous is None or logf.min() > previous + np.log(2.0)):
         return False
