@@ -636,7 +636,7 @@ def test_many_small_charts_share_one_conformal_solve_and_keep_their_maps(monkeyp
     V, F = np.concatenate(Vs), np.concatenate(Fs)
     solves = []
     real = conformal._spd_solve_once
-    monkeypatch.setattr(conformal, "_spd_solve_once", lambda A, b: solves.append(A.shape[0]) or real(A, b))
+    monkeypatch.setattr(conformal, "_spd_solve_once", lambda A, b, n: solves.append(A.shape[0]) or real(A, b, n))
     charts, starts, _ = make_charts(V, F)
     together = len(solves)
     monkeypatch.setattr(charting, "BATCH_CHARTS", 10 ** 9)

@@ -217,12 +217,19 @@ def test_any_finite_scale_gives_the_same_map(scale):
     assert rel < 1e-6
 
 
-def test_the_chartings_one_shot_lscm_is_the_starts_lscm():
+@pytest.mark.parametrize("supernodal", [False, True])
+def test_the_chartings_one_shot_lscm_is_the_starts_lscm(supernodal, monkeypatch):
     # uvbake.atlas.conformal.lscm assembles the conformal energy straight into the free unknowns and
     # keeps the u-v coupling only on boundary edges; it must give the solver-built LSCM's map, on a
-    # disk and on a cut cylinder (its cut is boundary on both sides)
+    # disk and on a cut cylinder (its cut is boundary on both sides), with either of CHOLMOD's
+    # factorisations (supernodal: what charts of SUPERNODAL_FROM unknowns or more get)
+    import uvbake.flatten.solvers.linalg as linalg
     from uvbake.atlas.conformal import lscm as one_shot
 
+    if supernodal:
+        if not linalg.cholmod_available():
+            pytest.skip("needs scikit-sparse (the cholmod extra)")
+        monkeypatch.setattr(linalg, "SUPERNODAL_FROM", 1)
     for V, F in (bumpy_disk(n=8, seed=3), cut_cylinder()):
         a, b = lscm(V, F), one_shot(V, F)
         assert np.allclose(a, b, rtol=0, atol=1e-9 * np.ptp(a))

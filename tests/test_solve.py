@@ -94,11 +94,17 @@ def test_solve_chart_pickles_and_any_executor_gives_the_same_bytes():
 # ---- positive-definite test ------------------------------------------------------------------------
 
 def _methods():
-    return ["superlu"] + (["cholmod"] if cholmod_available() else [])
+    return ["superlu"] + (["cholmod", "cholmod-supernodal"] if cholmod_available() else [])
 
 
 @pytest.mark.parametrize("method", _methods())
-def test_indefinite_matrices_are_rejected_by_superlu_as_by_cholmod(method):
+def test_indefinite_matrices_are_rejected_by_superlu_as_by_cholmod(method, monkeypatch):
+    if method == "cholmod-supernodal":               # the L L^T that charts of SUPERNODAL_FROM unknowns get
+        import uvbake.flatten.solvers.linalg as linalg
+
+        monkeypatch.setattr(linalg, "SUPERNODAL_FROM", 1)
+        assert linalg.cholmod_mode(2) == "supernodal"
+        method = "cholmod"
     rng = np.random.default_rng(0)
     n = 12
     B = rng.standard_normal((n, n))
@@ -114,6 +120,9 @@ def test_indefinite_matrices_are_rejected_by_superlu_as_by_cholmod(method):
     for M, expected in cases:
         assert (np.linalg.eigvalsh(M)[0] > 0) == expected    # the reference verdict
         assert is_positive_definite(sp.csc_matrix(M), method=method) == expected
+    broken = pd.copy()
+    broken[3, 3] = np.nan                             # a supernodal L L^T does not stop at a NaN pivot
+    assert not is_positive_definite(sp.csc_matrix(broken), method=method)
 
 
 def test_the_default_thread_pool_runs_only_for_two_large_charts_or_more(monkeypatch):

@@ -96,7 +96,7 @@ def lscm_many(Vs: list, Fs: list, frames: list, keys: list | None = None) -> lis
     A = sp.csc_matrix((data[both], (ri[both], ci[both])), shape=(m, m))
     right = (ri >= 0) & (ci < 0)
     rhs = -np.bincount(ri[right], weights=data[right] * x[cols[right]], minlength=m)
-    x[index >= 0] = _spd_solve_once(A, rhs)
+    x[index >= 0] = _spd_solve_once(A, rhs, 2 * int(nv.max()))
     uv = np.stack([x[uid], x[vid]], axis=1)
     return pieces(uv if back is None else uv[back], ends)
 
@@ -129,9 +129,10 @@ def _frames(V, F):
     return Q, area
 
 
-def _spd_solve_once(A, b):
-    """One symmetric positive definite solve (CHOLMOD with AMD when installed, else SuperLU)."""
-    from uvbake.flatten.solvers.linalg import cholmod_available
+def _spd_solve_once(A, b, largest):
+    """One symmetric positive definite solve (CHOLMOD with AMD when installed, else SuperLU);
+    ``largest``: the unknowns of the largest chart (the system is block diagonal)."""
+    from uvbake.flatten.solvers.linalg import cholmod_available, cholmod_mode
 
     if cholmod_available():
         import warnings
@@ -140,7 +141,7 @@ def _spd_solve_once(A, b):
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return cholesky(A, ordering_method="amd", mode="simplicial")(b)
+            return cholesky(A, ordering_method="amd", mode=cholmod_mode(largest))(b)
     import scipy.sparse.linalg as spla
 
     return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,

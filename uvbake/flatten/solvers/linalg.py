@@ -23,6 +23,18 @@ from uvbake.errors import InputError
 from uvbake.flatten.options import LINEAR_SOLVERS
 
 
+#: Matrices of at least this many unknowns are factored supernodal (L L^T in dense blocks), smaller ones
+#: simplicial (L D L^T): the crossover is 20k-40k unknowns and depends on the CPU, and above 50k the
+#: supernodal factor is 2.6-3.6x faster on a mesh's Hessian (docs/decisions/linear-solvers.md).
+SUPERNODAL_FROM = 50_000
+
+
+def cholmod_mode(unknowns: int) -> str:
+    """CHOLMOD's factorisation for a system whose largest independent block has ``unknowns`` unknowns:
+    "supernodal" from SUPERNODAL_FROM on, else "simplicial". A count, so the same on every machine."""
+    return "supernodal" if unknowns >= SUPERNODAL_FROM else "simplicial"
+
+
 class NotPositiveDefinite(Exception):
     """The damped matrix was not positive definite: raise the damping and try again."""
 
@@ -103,15 +115,17 @@ class CholmodSolver:
     def __init__(self, pattern: sp.spmatrix) -> None:
         from sksparse.cholmod import analyze
 
-        # A simplicial L D L^T in AMD order: on charts' Hessians of 2k-40k unknowns it factors 1.4-4x
-        # faster than a supernodal LL^T (docs/decisions/linear-solvers.md). It factors indefinite
-        # matrices without complaint, so factor() reads D's signs: LM must never step from a saddle.
-        self._factor = analyze(sp.csc_matrix(pattern, dtype=np.float64), mode="simplicial",
+        # AMD order; a simplicial L D L^T below SUPERNODAL_FROM unknowns (charts' Hessians of 2k-40k
+        # unknowns factor up to 4x faster so). It factors indefinite matrices without complaint, so
+        # factor() reads D's signs: LM must never step from a saddle. A joint batch of small charts
+        # (uvbake.flatten.joint) stays far below the threshold, so the size is that of one chart.
+        self._factor = analyze(sp.csc_matrix(pattern, dtype=np.float64), mode=cholmod_mode(pattern.shape[0]),
                                ordering_method="amd")
 
     def factor(self, A: sp.spmatrix, beta: float) -> None:
         """Factor A + beta I (same pattern as at construction); NotPositiveDefinite unless every pivot
-        of D is positive (Sylvester's law of inertia: P (A + beta I) P^T = L D L^T)."""
+        of D is positive (Sylvester's law of inertia: P (A + beta I) P^T = L D L^T). A supernodal L L^T
+        stops at a non-positive pivot itself, but not at a NaN: D (its diagonal squared) is read too."""
         from sksparse.cholmod import CholmodNotPositiveDefiniteError
 
         try:
