@@ -22,7 +22,6 @@ import scipy.sparse.linalg as spla
 from uvbake.errors import InputError
 from uvbake.flatten.options import LINEAR_SOLVERS
 
-
 #: Matrices of at least this many unknowns are factored supernodal (L L^T in dense blocks), smaller ones
 #: simplicial (L D L^T): the crossover is 20k-40k unknowns and depends on the CPU, and above 50k the
 #: supernodal factor is 2.6-3.6x faster on a mesh's Hessian (docs/decisions/linear-solvers.md).
