@@ -23,8 +23,8 @@ from uvbake.errors import InputError
 from uvbake.flatten.options import LINEAR_SOLVERS
 
 #: Matrices of at least this many unknowns are factored supernodal (L L^T in dense blocks), smaller ones
-#: simplicial (L D L^T): the crossover is 20k-40k unknowns and depends on the CPU, and above 50k the
-#: supernodal factor is 2.6-3.6x faster on a mesh's Hessian (docs/decisions/linear-solvers.md).
+#: simplicial (L D L^T). Where the two cross depends on the CPU; past it the supernodal factor wins
+#: by a factor that grows with the chart (measurements: docs/decisions/linear-solvers.md).
 SUPERNODAL_FROM = 50_000
 
 
@@ -114,8 +114,8 @@ class CholmodSolver:
     def __init__(self, pattern: sp.spmatrix) -> None:
         from sksparse.cholmod import analyze
 
-        # AMD order; a simplicial L D L^T below SUPERNODAL_FROM unknowns (charts' Hessians of 2k-40k
-        # unknowns factor up to 4x faster so). It factors indefinite matrices without complaint, so
+        # AMD order; a simplicial L D L^T below SUPERNODAL_FROM unknowns (most charts' Hessians, which
+        # factor faster so). It factors indefinite matrices without complaint, so
         # factor() reads D's signs: LM must never step from a saddle. A joint batch of small charts
         # (uvbake.flatten.joint) stays far below the threshold, so the size is that of one chart.
         self._factor = analyze(sp.csc_matrix(pattern, dtype=np.float64), mode=cholmod_mode(pattern.shape[0]),
