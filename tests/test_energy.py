@@ -132,6 +132,31 @@ def test_pattern_is_fixed_and_refilled_in_place():
     assert H.nnz == 4 * (len(V) + 2 * n_edges)
 
 
+def test_the_free_patterns_fast_build_is_the_general_one():
+    # with no fixed unknown the pattern is built from vertex pairs (9 keys a triangle, not 36): the same
+    # arrays, entry for entry, as the general build, also with a repeated vertex, a vertex no triangle
+    # uses, a lone triangle and several parts (closed torus, cut cylinder)
+    from meshgen import cut_cylinder, torus
+
+    cases = [bumpy_disk(6), cut_cylinder(), torus()]
+    V, F = plane()
+    F = F.copy()
+    F[3] = [F[3, 0], F[3, 0], F[3, 2]]                              # a triangle repeating a vertex
+    cases += [(V, F), (np.vstack([V, [[9.0, 9.0, 9.0]]]), F), (V[:3], np.array([[0, 1, 2]]))]
+    Vt, Ft = torus()
+    Vd, Fd = bumpy_disk(4)
+    cases.append((np.vstack([Vd, Vt]), np.vstack([Fd, Ft + len(Vd)])))
+    names = ["_hslot_full", "_hslot", "_hkeep", "_indices", "_indptr", "_diag", "_gkeep", "_gslot"]
+    for V, F in cases:
+        fast = DistortionEnergy(V, F, alpha=0.5)
+        general = DistortionEnergy(V, F, alpha=0.5)
+        general._build_pattern_general()
+        for name in names:
+            a, b = getattr(fast, name), getattr(general, name)
+            assert a.dtype == b.dtype and np.array_equal(a, b), name
+        assert fast._nnz == general._nnz and fast._all_free and general._all_free
+
+
 def test_change_is_accurate_where_the_difference_of_values_is_not():
     V, F = bumpy_disk(10)
     rng = np.random.default_rng(6)

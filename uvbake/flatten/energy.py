@@ -152,6 +152,14 @@ class DistortionEnergy:
 
     # -- sparsity pattern, built once ------------------------------------------------------------
     def _build_pattern(self):
+        if self.fixed.any():
+            self._build_pattern_general()
+        else:
+            self._build_pattern_free()
+
+    def _build_pattern_general(self):
+        """The Hessian's CSC pattern and every triangle's slots in it, for any fixed unknowns: the 36
+        (row, column) keys of each triangle's six unknowns, made unique."""
         fi = self.free_index[self.dof]                                        # (m,6), -1 if fixed
         rows = np.broadcast_to(fi[:, :, None], (len(fi), 6, 6)).ravel()
         cols = np.broadcast_to(fi[:, None, :], (len(fi), 6, 6)).ravel()
@@ -173,6 +181,48 @@ class DistortionEnergy:
         gi = fi.ravel()
         self._gkeep = gi >= 0
         self._gslot = gi[self._gkeep]
+
+    def _build_pattern_free(self):
+        """_build_pattern when every unknown is free (unknown 2v + c is vertex v's u or v), from the
+        vertex pairs: np.unique over 9 keys a triangle instead of 36. Vertex pair (r, c) holds the
+        four entries (2r + i, 2c + j); in CSC order column 2c + j lists rows 2r, 2r + 1 for each row
+        vertex r of column vertex c in turn, so every slot follows by arithmetic. The arrays are
+        those of the general build (tests/test_energy.py compares them)."""
+        F, n = self.F, self.n
+        m = len(F)
+        vkey = (F[:, None, :] * n + F[:, :, None]).reshape(-1)                # (m,3,3): column vertex b, row a
+        pairs, inverse = np.unique(vkey, return_inverse=True)
+        rv, cv = pairs % n, pairs // n
+        k = np.bincount(cv, minlength=n)                                      # row vertices per column vertex
+        first = np.cumsum(k) - k                                              # its first pair
+        start = 4 * first                                                     # its first slot
+        rank = np.arange(len(pairs)) - first[cv]
+        # slot of entry (row 2 rv + i, column 2 cv + j) of pair p: start + j 2k + 2 rank + i
+        base = (start[cv] + 2 * rank)[inverse.reshape(m, 3, 3)]               # (m, row vertex a, column vertex b)
+        twok = (2 * k)[F]                                                     # (m, b)
+        i = np.repeat(np.arange(2), 3)                                        # local unknown p: vertex p % 3, i = p // 3
+        a = np.tile(np.arange(3), 2)
+        slot = base[:, a[:, None], a[None, :]] + i[:, None] + i[None, :] * twok[:, None, a]
+        self._hslot_full = slot.reshape(m, 36)
+        self._hslot = self._hslot_full.reshape(-1)
+        self._hkeep = np.ones(m * 36, bool)
+        self._all_free = True
+        self._nnz = 4 * len(pairs)
+        N = 2 * n
+        indptr = np.empty(N + 1, np.int64)
+        indptr[0:N:2], indptr[1:N:2], indptr[N] = start, start + 2 * k, self._nnz
+        self._indptr = indptr.astype(np.int32)
+        rows = np.empty(self._nnz, np.int64)                                  # column by column
+        at = start[cv] + 2 * rank
+        for j in range(2):
+            for ii in range(2):
+                rows[at + j * (2 * k)[cv] + ii] = 2 * rv + ii
+        self._indices = rows.astype(np.int32)
+        ucol = np.repeat(np.arange(N), np.diff(indptr))
+        self._diag = np.flatnonzero(rows == ucol)
+        gi = self.dof.ravel()
+        self._gkeep = np.ones(len(gi), bool)
+        self._gslot = gi
 
     def empty_matrix(self) -> sp.csc_matrix:
         """A CSC matrix with the Hessian's pattern and zero values."""
