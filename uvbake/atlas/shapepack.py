@@ -32,7 +32,8 @@ from uvbake.atlas.distance import boundary_halfedges
 from uvbake.atlas.footprint import _BATCH_CELLS, _EPS, footprints
 from uvbake.mesh.arrays import pieces, signed_areas
 
-_CHUNK = 16          # candidate rows tested together
+_CHUNK = 16          # candidate rows tested together at first; each chunk without a fit doubles it
+_CHUNK_MAX = 256     # up to this many
 _BATCH = 512         # surviving positions whose other runs are tested together
 _RUN = np.int16      # free-run lengths (atlases are at most 16384 texels wide): half the memory traffic of int32
 _NOWHERE = 1 << 40   # find()'s `searched` for a footprint wider than the strip: no row fits
@@ -240,10 +241,11 @@ class _Atlas:
             raise RuntimeError("shape packer: row table shorter than the search window")
         win = np.ndarray((ny - start, h), rm.dtype, rm, 0, (rm.itemsize, rm.itemsize))
         ys = np.flatnonzero((win >= Lrow[None, :]).all(axis=1)) + start
-        k0, stride = 0, self.run.shape[1]
+        k0, stride, chunk = 0, self.run.shape[1], _CHUNK
         while k0 < len(ys):                   # candidate rows, bottom up, a chunk at a time
-            yc = ys[k0:k0 + _CHUNK]
-            k0 += _CHUNK
+            yc = ys[k0:k0 + chunk]
+            k0 += chunk
+            chunk = min(2 * chunk, _CHUNK_MAX)   # the first fit is the lowest row's wherever chunks end
             # dense phase: runs tested on every position of the chunk (consecutive candidate rows, the
             # usual case, are a view of the run table; others a row gather), then a column slice
             y0, n = int(yc[0]), len(yc)
