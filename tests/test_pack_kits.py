@@ -110,6 +110,43 @@ def test_a_search_from_a_start_row_finds_the_first_fit_at_or_above_it_and_says_h
             assert _first_fit_brute(atlas.blocked, fp, max(start, atlas.m), atlas.searched) is None
 
 
+@pytest.mark.parametrize("ring", [False, True])
+def test_a_search_over_many_chunks_of_rows_still_finds_the_first_fit(ring):
+    # the candidate rows are tested in chunks that double after each chunk without a fit (as a
+    # triangle soup's rows pass the row maxima but seldom fit): wherever the only hole is, up to
+    # 650 rows up, the search finds it, the lowest row's leftmost, with or without a top-edge bound
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    from uvbake.atlas.shapepack import _CHUNK, _runs
+
+    fp = np.ones((3, 3), bool)
+    fp[1, 1] = not ring
+    # every row has one free run of 3 (so every row passes the row maxima), never aligned with its
+    # neighbours' (so no 3 x 3 window is free) but where the hole is made
+    rows = np.arange(700)
+    base = np.ones((700, 40), bool)
+    base[rows[:, None], (7 * rows % 34 + 1)[:, None] + np.arange(3)[None, :]] = False
+
+    def first_fit(b, y_to):                                   # brute force, all windows at once
+        hit = ~(sliding_window_view(b, fp.shape) & fp).any(axis=(2, 3))
+        hit[:1] = False                                       # the margin row
+        hit[y_to:] = False
+        ys, xs = np.nonzero(hit)
+        return (int(xs[0]), int(ys[0])) if len(ys) else None
+
+    for hole in range(2, 650, 23):
+        blocked = base.copy()
+        blocked[hole:hole + 3, 17:20] = False
+        atlas = _atlas_with(blocked, margin=1)
+        pos = atlas.find(_runs(fp), *fp.shape)
+        assert pos == first_fit(atlas.blocked, atlas.top + 1)
+        assert pos[1] <= hole
+        for bound in (pos[1] + 2, pos[1] + 3):                # a top edge bound just under, then at the fit
+            atlas = _atlas_with(blocked, margin=1)
+            assert atlas.find(_runs(fp), *fp.shape, top_bound=bound) == first_fit(atlas.blocked, bound - 2)
+    assert hole > 8 * _CHUNK                                  # the last holes lie several chunks up
+
+
 def test_equal_footprints_skip_the_rows_ruled_out_for_each_other_and_the_layout_is_the_same(monkeypatch):
     from uvbake.atlas import shapepack
 
