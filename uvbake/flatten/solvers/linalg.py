@@ -114,10 +114,10 @@ class CholmodSolver:
     def __init__(self, pattern: sp.spmatrix) -> None:
         from sksparse.cholmod import analyze
 
-        # AMD order; a simplicial L D L^T below SUPERNODAL_FROM unknowns (most charts' Hessians, which
-        # factor faster so). It factors indefinite matrices without complaint, so
-        # factor() reads D's signs: LM must never step from a saddle. A joint batch of small charts
-        # (uvbake.flatten.joint) stays far below the threshold, so the size is that of one chart.
+        # AMD order. Below SUPERNODAL_FROM unknowns (most charts' Hessians) a simplicial L D L^T, the
+        # faster there; it factors indefinite matrices without complaint, so factor() reads D's signs:
+        # LM must never step from a saddle. A joint batch of small charts (uvbake.flatten.joint) stays
+        # far below the threshold, so the size compared is that of one chart.
         self._factor = analyze(sp.csc_matrix(pattern, dtype=np.float64), mode=cholmod_mode(pattern.shape[0]),
                                ordering_method="amd")
 
