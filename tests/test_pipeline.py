@@ -189,6 +189,30 @@ def test_coordinates_at_any_finite_scale_unwrap(scale):
     assert abs(e - e_ref) <= 1e-9 + 1e-6 * e_ref
 
 
+@pytest.mark.parametrize("e", [70, -80])
+def test_far_from_unit_size_every_figure_and_option_is_in_the_inputs_units(e):
+    # past 2**64 the mesh is worked on scaled by a power of two; what the user reads and gives is not
+    s = 2.0 ** e
+    V, F = bumpy_disk(8)
+    ref = unwrap((V, F), texture_size_px=64, gutter_px=1)
+    r = unwrap((V * s, F), texture_size_px=64, gutter_px=1)
+    assert r.report["coordinate_exponent"] != 0 and "coordinate_exponent" not in ref.report
+    assert np.array_equal(r.corner_uv, ref.corner_uv)
+    for key, p in (("texel_density", -1), ("texel_size_world", 1), ("scale", -1)):
+        assert r.report["atlas"][key] == pytest.approx(ref.report["atlas"][key] * s ** p, rel=1e-12, abs=0)
+    assert r.report["seam_length_added"] == pytest.approx(ref.report["seam_length_added"] * s, rel=1e-12, abs=0)
+    for a, b in zip(r.report["charts"], ref.report["charts"]):
+        assert a["area_3d"] == pytest.approx(b["area_3d"] * s * s, rel=1e-12, abs=0)
+    for c, c0, res, res0 in zip(r.charts, ref.charts, r.results, ref.results):
+        assert np.allclose(c.V, c0.V * s, rtol=1e-12, atol=0) and np.allclose(res.uv, res0.uv * s, rtol=1e-12, atol=0)
+    # a texel density per input unit grows the same atlas at any scale
+    d = ref.report["atlas"]["texel_density"]
+    g0 = unwrap((V, F), texture_size_px=None, texel_density=d, gutter_px=1).report
+    g1 = unwrap((V * s, F), texture_size_px=None, texel_density=d / s, gutter_px=1).report
+    assert (g1["atlas"]["width_px"], g1["atlas"]["height_px"]) == (g0["atlas"]["width_px"], g0["atlas"]["height_px"])
+    assert g1["atlas"]["texel_density"] == pytest.approx(d / s, rel=1e-12, abs=0)
+
+
 def test_a_rectangular_atlas_keeps_each_charts_map_up_to_a_similarity_in_texels():
     # (width, height) = (512, 256): UVs in [0,1]^2 span 512 texels across and 256 down, so every chart
     # must be scaled by the same texels per unit both ways: in texel coordinates each triangle keeps

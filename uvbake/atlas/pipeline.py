@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.analysis.metrics import chart_distortions, distortion_summary
+from uvbake.atlas.units import to_input_units, working_density
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
@@ -234,7 +235,7 @@ def _unwrap(source, **opts):
     _check_room(run.n_charts_input, opts)
     _stage_solve(run)
     packed, corner_uv, chart_ids, verdict = _pack_and_validate(run, {k: opts[k] for k in (
-        "texture_size_px", "gutter_px", "texel_density", "mip_levels")})
+        "texture_size_px", "gutter_px", "mip_levels")} | {"texel_density": working_density(opts["texel_density"], run.k)})
     # grown, or from mip_levels; one number for a square atlas, else [width, height]
     opts["texture_size_px"] = packed.width_px if packed.width_px == packed.height_px else [packed.width_px,
                                                                                           packed.height_px]
@@ -244,7 +245,8 @@ def _unwrap(source, **opts):
     run.timings["total_s"] = time.perf_counter() - t0
     report = _report(run, corner_uv, packed, verdict)
     V = np.ldexp(run.V, run.k) if run.k else run.V     # the input's coordinates (the scaling by 2**-k is exact)
-    return UnwrapResult(V, run.F, corner_uv, run.charts, run.results, chart_ids, image, run.colors, report)
+    charts, results = to_input_units(report, run.charts, run.results, run.k)
+    return UnwrapResult(V, run.F, corner_uv, charts, results, chart_ids, image, run.colors, report)
 
 
 def _check_room(n, opts):
@@ -420,8 +422,6 @@ def _report(run, corner_uv, packed, verdict):
         "n_flipped_total": int(sum(r.n_flipped for r in results)),
         "timings": run.timings,
     }
-    if run.k:
-        report["coordinate_exponent"] = run.k   # lengths and areas above are in units of 2**k
     return report
 
 
