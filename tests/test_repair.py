@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from uvbake.errors import InputError
+from uvbake.errors import ChartError, InputError
 from uvbake.mesh.charts import check_chart, split_charts
 from uvbake.mesh.repair import repair
 from uvbake.mesh.topology import nonmanifold_vertices, topology
@@ -53,6 +53,60 @@ def test_bowtie_vertex_is_split_into_fans():
     for c in split_charts(res.V, res.F):          # two valid single-triangle charts
         check_chart(c.V, c.F)
     _assert_maps_back(res, V, F)
+
+
+def _c_shaped_label():
+    """A flat 4 x 4-cell grid (two triangles a cell, every diagonal towards the cell's upper right corner)
+    whose label 1 runs from cell (1,1) round through (0,1) ... (2,3) to cell (2,2): one edge-connected
+    region that touches itself at vertex (2,2) only, where the label's two fans meet. The whole mesh is
+    a manifold disk; around (2,2) the labels alternate cell by cell, so label 0's region (the rest, also
+    one region) is pinched there too."""
+    x, y = np.meshgrid(np.arange(5.0), np.arange(5.0), indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel(), np.zeros(25)])
+    vid = np.arange(25).reshape(5, 5)
+    F, cells = [], []
+    for i in range(4):                                  # one iteration per cell (16): the test's fixture
+        for j in range(4):
+            a, b, c, d = vid[i, j], vid[i + 1, j], vid[i + 1, j + 1], vid[i, j + 1]
+            F += [[a, b, c], [a, c, d]]
+            cells += [(i, j), (i, j)]
+    ring = {(1, 1), (0, 1), (0, 2), (0, 3), (1, 3), (2, 3), (2, 2)}
+    labels = np.array([1 if cell in ring else 0 for cell in cells])
+    return V, np.array(F), labels, int(vid[2, 2])
+
+
+def test_a_label_region_touching_itself_at_a_vertex_gets_a_copy_of_it_per_fan():
+    V, F, labels, pinch = _c_shaped_label()
+    assert len(nonmanifold_vertices(F, len(V))) == 0              # the mesh itself is clean
+    assert repair(V, F).actions == []
+    for k in (0, 1):
+        assert nonmanifold_vertices(F[labels == k], len(V)).tolist() == [pinch]
+    res = repair(V, F, face_labels=labels)
+    # one copy for each label's second fan; the rest of the vertex's triangles keep it
+    assert [(a["kind"], a["count"], a["examples"]) for a in res.actions] == [("split_label_pinches", 2, [pinch])]
+    assert len(res.V) == len(V) + 2 and sorted(res.vertex_index.tolist()) == sorted([*range(len(V)), pinch, pinch])
+    lab = labels[res.face_index]
+    for k in (0, 1):                                              # each label's region is manifold on its own
+        assert len(nonmanifold_vertices(res.F[lab == k], len(res.V))) == 0
+    for c in split_charts(res.V, res.F, lab):
+        check_chart(c.V, c.F)
+    _assert_maps_back(res, V, F)
+    again = repair(res.V, res.F, face_labels=lab)                 # idempotent with labels too
+    assert again.actions == [] and np.array_equal(again.F, res.F)
+
+
+def test_a_pinched_label_region_unwraps_into_charts_of_one_label():
+    from uvbake.atlas.pipeline import unwrap
+
+    V, F, labels, pinch = _c_shaped_label()
+    r = unwrap((V, F), face_labels=labels, alpha=0.5, texture_size_px=128, gutter_px=1)
+    assert r.report["valid"] and r.report["min_texel_share"] >= 1 / 16
+    res = repair(V, F, face_labels=labels)
+    lab = labels[res.face_index]
+    assert {c.label for c in r.charts} == {0, 1}
+    assert all(len(np.unique(lab[c.face_index])) == 1 for c in r.charts)
+    with pytest.raises(ChartError, match="non-manifold vertices"):   # unrepaired, the region is refused
+        unwrap((V, F), face_labels=labels, repair=False)
 
 
 def test_nonmanifold_edge_keeps_the_best_pair_and_detaches_the_rest():

@@ -456,7 +456,7 @@ def _load(source, face_labels, repair, weld):
         from uvbake.flatten.pinches import repair_copies
         from uvbake.mesh.repair import repair as repair_mesh
 
-        rep = repair_mesh(V, F, weld=weld)
+        rep = repair_mesh(V, F, weld=weld, face_labels=labels)
         repair_report = rep.to_dict()
         if rep.actions:
             labels = None if labels is None else labels[rep.face_index]

@@ -19,7 +19,9 @@ The steps, in order (each vectorised over triangles, half-edges and corners):
 5. non-manifold edges (more than two triangles): the two triangles that are consistently oriented
    and best aligned stay joined, the others are detached by copying the edge's vertices;
 6. non-manifold (bowtie) vertices: one copy of the vertex per edge-connected fan (the largest fan
-   keeps the original index);
+   keeps the original index); with face labels, also a vertex where one label's triangles form
+   several fans (its region touches itself there: a chart never spans two labels, so each label's
+   region must be manifold on its own): one copy per fan of each label there;
 7. consistent winding per connected piece: a BFS spanning tree of the dual graph gives each triangle's
    flip parity (pointer jumping, no Python loop); the orientation of the majority is kept. A
    non-orientable piece (Moebius strip) is cut along the edges where the parity disagrees and
@@ -288,8 +290,10 @@ def soup_like(F: np.ndarray, n: int) -> bool:
 
 
 def _one_pass(V: np.ndarray, F: np.ndarray, fidx: np.ndarray, vidx: np.ndarray, min_component_faces: int | None,
-              weld_tol: float, weld: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list, list]:
-    """One pass of every step; fidx/vidx give the input ids (examples are reported in them).
+              weld_tol: float, weld: bool = True, labels: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list, list]:
+    """One pass of every step; fidx/vidx give the input ids (examples are reported in them), ``labels``
+    the input's face labels or None.
 
     Returns V, F, face_index, vertex_index (into the original input), actions, warnings.
     """
@@ -300,6 +304,8 @@ def _one_pass(V: np.ndarray, F: np.ndarray, fidx: np.ndarray, vidx: np.ndarray, 
     for step in (_drop_degenerate, _drop_duplicates, _split_nonmanifold, _orient):
         if len(p.F):
             step(p)
+        if step is _split_nonmanifold and labels is not None and len(p.F):
+            _split_label_pinches(p, labels[p.face_index])
     if len(p.F):
         _drop_specks(p, min_component_faces)
     _drop_unreferenced(p)
@@ -388,6 +394,35 @@ def _split_nonmanifold(p: RepairResult) -> None:
     p.F, p.V, p.vertex_index = G, p.V[vmap], vidx[vmap]
 
 
+def _split_label_pinches(p: RepairResult, labels: np.ndarray) -> None:
+    """Step 6, labelled meshes: at a vertex where a label's triangles form several fans (triangles joined
+    only across edges of two triangles of that label), every fan of that label but its largest gets a
+    vertex of its own; the vertex's other triangles stay together."""
+    F, n = p.F, len(p.V)
+    _, key = _edge_keys(F, n)
+    order = np.argsort(key, kind="stable")
+    _, start, cnt = np.unique(key[order], return_index=True, return_counts=True)
+    i, j = order[start[cnt == 2]], order[start[cnt == 2] + 1]
+    same = labels[i // 3] == labels[j // 3]
+    fan = _corner_fans(F, n, i[same], j[same])
+    vc = F.ravel()
+    lab = np.repeat(np.unique(labels, return_inverse=True)[1].ravel(), 3)
+    first = np.unique(fan, return_index=True)[1]                  # a corner of every fan (fans are 0..k-1)
+    size = np.bincount(fan)
+    # fans of one (vertex, label), largest first (ties: the lower fan id): all but the first are split off
+    o = np.lexsort((np.arange(len(first)), -size, lab[first], vc[first]))
+    pair = vc[first][o] * (int(lab.max()) + 1) + lab[first][o]
+    off = np.zeros(len(first), bool)
+    off[o[1:][pair[1:] == pair[:-1]]] = True
+    if not off.any():
+        return
+    fan = np.unique(np.where(off[fan], fan, len(first) + vc), return_inverse=True)[1].ravel()
+    G, vmap, split_v = _vertices_per_fan(F, n, fan)
+    p.actions.append({"kind": "split_label_pinches", "count": int(len(vmap) - n),
+                      "examples": _ex(p.vertex_index[split_v])})
+    p.F, p.V, p.vertex_index = G, p.V[vmap], p.vertex_index[vmap]
+
+
 def _orient(p: RepairResult) -> None:
     """Step 7: consistent winding (a non-orientable piece is cut where the parity disagrees)."""
     F, n, fidx = p.F, len(p.V), p.face_index
@@ -468,7 +503,7 @@ SPECK_SHARE = 0.01
 
 
 def repair(V: ArrayLike, F: ArrayLike, *, min_component_faces: int | None = None, weld_tol: float = 1e-9,
-           weld: bool | None = None) -> RepairResult:
+           weld: bool | None = None, face_labels: ArrayLike | None = None) -> RepairResult:
     """Repair a triangle mesh so its pieces can become charts (see the module notes for the steps).
 
     Parameters
@@ -486,6 +521,8 @@ def repair(V: ArrayLike, F: ArrayLike, *, min_component_faces: int | None = None
         Weld coincident boundary vertices (step 2): None (default) only when the input is soup-like
         (most edges unshared, :func:`soup_like`), True always, False never. Boundaries of a mesh
         the user cut stay cuts unless they ask.
+    face_labels : (m,) int array, optional
+        Per-triangle segment labels: each label's region is made manifold on its own too (step 6).
 
     Returns
     -------
@@ -499,12 +536,15 @@ def repair(V: ArrayLike, F: ArrayLike, *, min_component_faces: int | None = None
     V, F = _check_repair_input(V, F, min_component_faces, weld_tol)
     if weld not in (None, True, False):
         raise InputError(f"repair: weld={weld!r} must be True, False or None (weld only soup-like input)")
+    labels = None if face_labels is None else np.asarray(face_labels).reshape(-1)
+    if labels is not None and len(labels) != len(F):
+        raise InputError(f"repair: face_labels has {len(labels)} entries for {len(F)} triangles; give one per triangle")
     fidx, vidx = np.arange(len(F)), np.arange(len(V))
     actions, warns = [], []
     if weld is None:
         weld = soup_like(F, len(V))                  # decided once, on the input
     for p in range(MAX_PASSES):                       # a handful of passes to a fixed point
-        V2, F2, fi, vi, act, w = _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol, weld)
+        V2, F2, fi, vi, act, w = _one_pass(V, F, fidx, vidx, min_component_faces, weld_tol, weld, labels)
         if not act:
             break
         for a in act:
