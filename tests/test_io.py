@@ -501,6 +501,26 @@ def test_off_reader_declines_what_it_does_not_handle(tmp_path):
         load_mesh(bad)
 
 
+def test_coff_vertex_colours_are_read(tmp_path):
+    # Meshlab and Geomview write COFF: x y z then RGBA 0-255 (or RGB 0-1 floats) per vertex; trimesh drops them
+    V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    F = [[0, 1, 2], [1, 3, 2]]
+    rgba = [[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [255, 255, 255, 128]]
+    ints = tmp_path / "ints.off"
+    ints.write_text("COFF\n4 2 0\n" + "".join(" ".join(map(str, v + c)) + "\n" for v, c in zip(V, rgba))
+                    + "3 0 1 2\n3 1 3 2\n")
+    floats = tmp_path / "floats.off"
+    floats.write_text("COFF # rgb in [0, 1]\n4 2 0\n" + "".join(f"{v[0]} {v[1]} {v[2]} 0.5 0.25 1\n" for v in V)
+                      + "3 0 1 2\n3 1 3 2\n")
+    a, b = load_mesh(ints), load_mesh(floats)
+    assert a.V.tolist() == V and a.F.tolist() == F and b.F.tolist() == F
+    assert np.allclose(a.vertex_colors, np.array(rgba)[:, :3] / 255.0, rtol=0, atol=1e-12)
+    assert np.allclose(b.vertex_colors, [[0.5, 0.25, 1.0]] * 4, rtol=0, atol=1e-12)
+    plain = tmp_path / "plain.off"
+    plain.write_text("OFF\n4 2 0\n" + "".join(" ".join(map(str, v)) + "\n" for v in V) + "3 0 1 2\n3 1 3 2\n")
+    assert load_mesh(plain).vertex_colors is None
+
+
 # ---------------------------------------------------------------------------------------- issue 15
 
 

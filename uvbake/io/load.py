@@ -340,7 +340,8 @@ def _read_binary_ply(path: Path) -> MeshData | None:
 
 
 def _read_off_triangles(path: Path) -> MeshData | None:
-    """A plain ``OFF`` file of triangles (no colours), read without trimesh; None for anything else."""
+    """A plain ``OFF`` file of triangles, or a ``COFF`` one (vertex colours: RGB or RGBA, 0-255 integers or
+    0-1 floats; trimesh drops them), read without trimesh; None for anything else."""
     try:
         text = path.read_text(encoding="ascii")
     except (UnicodeDecodeError, OSError):
@@ -348,7 +349,7 @@ def _read_off_triangles(path: Path) -> MeshData | None:
     if "#" in text:                                   # comments: cut each line's, one line at a time
         text = " ".join(line.split("#", 1)[0] for line in text.splitlines())
     tokens = text.split()
-    if len(tokens) < 4 or tokens[0] != "OFF":
+    if len(tokens) < 4 or tokens[0] not in ("OFF", "COFF"):
         return None
     try:
         nv, nf = int(tokens[1]), int(tokens[2])
@@ -356,12 +357,19 @@ def _read_off_triangles(path: Path) -> MeshData | None:
     except ValueError:
         return None
     # triangles only: trimesh orders the triangles of polygons by corner, not in file order
-    if nv < 0 or nf <= 0 or len(body) != 3 * nv + 4 * nf:
+    per = (len(body) - 4 * nf) / nv - 3 if nv > 0 else 0      # numbers per vertex after x y z
+    if nv < 0 or nf <= 0 or per not in ((0,) if tokens[0] == "OFF" else (3, 4)):
         return None
-    faces = body[3 * nv:].reshape(nf, 4)
+    k = 3 + int(per)
+    faces = body[k * nv:].reshape(nf, 4)
     if not np.all(faces[:, 0] == 3) or not np.all(faces[:, 1:] == np.rint(faces[:, 1:])):
         return None
-    return _make(body[:3 * nv].reshape(nv, 3), faces[:, 1:].astype(np.int64), None, None, str(path))
+    rows = body[:k * nv].reshape(nv, k)
+    colors = None
+    if per:
+        rgb = rows[:, 3:6]
+        colors = np.clip(rgb / 255.0 if rgb.max(initial=0.0) > 1.0 else rgb, 0.0, 1.0)
+    return _make(rows[:, :3], faces[:, 1:].astype(np.int64), colors, None, str(path))
 
 
 def _fan_triangulate(raw_faces):
