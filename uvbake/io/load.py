@@ -312,10 +312,19 @@ def _mesh_from_ply_elements(elements: dict, name: str) -> MeshData:
     for names in (("red", "green", "blue"), ("r", "g", "b"),
                   ("diffuse_red", "diffuse_green", "diffuse_blue")):
         if all(k in vertex for k in names):
-            rgb = np.column_stack([vertex[k] for k in names])
-            colors = rgb / 255.0 if rgb.dtype == np.uint8 else rgb.astype(np.float64)
+            colors = _unit_colors(np.column_stack([vertex[k] for k in names]))
             break
     return _make(V, F, colors, labels, name)
+
+
+def _unit_colors(rgb: np.ndarray) -> np.ndarray:
+    """Colours in [0, 1]: 8-bit integers over 255, 16-bit ones (some scanners) over 65535, wider integers
+    over whichever of the two their values fit; floats as they are, or over 255 when some exceed 1."""
+    if np.issubdtype(rgb.dtype, np.integer):
+        bits16 = rgb.dtype.itemsize == 2 or (rgb.dtype.itemsize > 2 and rgb.max(initial=0) > 255)
+        return np.clip(rgb / (65535.0 if bits16 else 255.0), 0.0, 1.0)
+    rgb = rgb.astype(np.float64)
+    return np.clip(rgb / 255.0 if rgb.max(initial=0.0) > 1.0 else rgb, 0.0, 1.0)
 
 
 def _read_binary_ply(path: Path) -> MeshData | None:
@@ -367,8 +376,7 @@ def _read_off_triangles(path: Path) -> MeshData | None:
     rows = body[:k * nv].reshape(nv, k)
     colors = None
     if per:
-        rgb = rows[:, 3:6]
-        colors = np.clip(rgb / 255.0 if rgb.max(initial=0.0) > 1.0 else rgb, 0.0, 1.0)
+        colors = _unit_colors(rows[:, 3:6])
     return _make(rows[:, :3], faces[:, 1:].astype(np.int64), colors, None, str(path))
 
 
