@@ -381,6 +381,23 @@ def test_crease_split_never_goes_past_max_charts():
     assert len(charts) <= 4
 
 
+def test_past_the_chart_budget_charts_whose_conformal_map_collapses_are_still_cut():
+    # a rough closed scan asked for one chart: kept whole (or halved), its conformal maps collapse
+    # triangles, and the guarantee's capped splits then left 2 % of the area below 1/4 of its fair share
+    # (least share 0.001, 340 charts); cut while collapsing, every texel keeps its share
+    import trimesh
+
+    from uvbake.atlas.charting import COLLAPSED_START
+
+    m = trimesh.creation.icosphere(subdivisions=4)
+    V = m.vertices + np.random.default_rng(1).normal(0.0, 0.04, m.vertices.shape)
+    res = uvbake.unwrap((V, m.faces), alpha=0.0, max_charts=1, texture_size_px=256)
+    rep = res.report
+    assert rep["valid"] and rep["min_texel_share"] >= 1 / 16 and rep["area_below_quarter"] <= 0.005
+    assert rep["over_budget"] and all(o["least_factor"] > COLLAPSED_START for o in rep["over_budget"]
+                                      if o["reason"] == "max_charts")
+
+
 @pytest.mark.parametrize("start", ["flipped", "collapsed"])
 def test_a_chart_whose_start_is_flipped_or_collapsed_restarts_from_its_own_conformal_map(start):
     from uvbake.atlas.guarantee import solve_valid

@@ -46,6 +46,9 @@ MIN_PIECE_FACES = 8
 OVERLAP_ROUNDS = 4
 #: Cap on conformal solves per initial chart (work count; a chart past it is kept as it is).
 MAX_SOLVES_PER_CHART = 400
+#: Past the chart budget (max_charts) a chart is still cut while its conformal map takes some triangle's
+#: area factor to this or below (a collapse: the guarantee's COLLAPSED, a validity matter like a flip).
+COLLAPSED_START = 1e-6
 
 
 def check_budget(max_stretch: float, max_charts: int | None) -> tuple[float, int | None]:
@@ -444,13 +447,7 @@ def _decide(st, chart, previous):
     small = len(chart.F) < 2 * MIN_PIECE_FACES
     if _slit_cone(st, chart, uv, logf, frames[1], previous, small or ok):
         return
-    if ok or small or st.full() or st.solves >= st.budget_solves:
-        if not ok:
-            reason = "max_charts" if st.full() else "too small to cut" if small else "work cap"
-            st.over.append(dict(chart=chart.name, triangles=int(len(chart.F)),
-                                least_factor=float(np.exp(logf.min())), reason=reason))
-        st.done.append(chart)
-        st.starts.append(uv)
+    if _kept(st, chart, uv, logf, ok, small):
         return
     least = float(logf.min())
     halves = _halves(chart) if nearly_closed(chart) else None
@@ -485,6 +482,23 @@ def _decide(st, chart, previous):
         else:                                           # within the budget on the parent's map: no solve
             st.done.append(p)
             st.starts.append(inherited)
+
+
+def _kept(st, chart, uv, logf, ok, small):
+    """Keep ``chart`` with its map ``uv`` when it is within the budget (``ok``), too small to cut, past the
+    chart budget, or a work count says stop (the last three recorded as over the budget); False when it
+    is to be cut. Past the chart budget a chart is still cut while its map collapses triangles (a
+    validity matter, as a flip)."""
+    full = st.full() and bool(np.all(np.isfinite(logf)) and logf.min() > np.log(COLLAPSED_START))
+    if not (ok or small or full or st.solves >= st.budget_solves):
+        return False
+    if not ok:
+        reason = "max_charts" if full else "too small to cut" if small else "work cap"
+        st.over.append(dict(chart=chart.name, triangles=int(len(chart.F)),
+                            least_factor=float(np.exp(logf.min())), reason=reason))
+    st.done.append(chart)
+    st.starts.append(uv)
+    return True
 
 
 def _slit_cone(st, chart, uv, logf, area, previous, keep):

@@ -155,7 +155,8 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
         at least 1/max_stretch (charts are cut before solving so their conformal maps keep it;
         1/max_stretch^2 after the solve), and its angle distortion sigma1/sigma2 at most max_stretch^2.
     max_charts : int, optional
-        Chart budget: charting stops cutting at this many charts (the guarantee's splits still happen).
+        Chart budget: charting stops cutting at this many charts, but for charts whose conformal map
+        collapses triangles (the guarantee's splits still happen).
     max_splits : int, optional
         Cap on the guarantee's splits of each kind, distortion (starved, sheared) and validity (flips,
         overlaps) (default: one per chart entering the solve, at least 256); past it the remaining

@@ -120,8 +120,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(charts are cut before solving so they can; 1/S^2 after the solve) and its "
                         "angle distortion sigma1/sigma2 stays at most S^2; default 4")
     g.add_argument("--max-charts", type=_typed(int, 1), default=None, metavar="N",
-                   help="chart budget: stop cutting for the distortion budget at N charts (the guarantee's "
-                        "splits may still add some)")
+                   help="chart budget: stop cutting for the distortion budget at N charts (charts whose "
+                        "conformal map collapses triangles are still cut, and the guarantee's splits may add some)")
     g.add_argument("--weld", action="store_true",
                    help="weld coincident boundary vertices (default: only for triangle soups; a mesh's own "
                         "cuts stay cuts)")
