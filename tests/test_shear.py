@@ -104,6 +104,25 @@ def test_the_guarantee_splits_until_nothing_is_bad_however_many_rounds_that_take
     assert rounds[-1] == 0
 
 
+@pytest.mark.slow
+def test_a_rough_scan_at_one_chart_is_split_until_valid_within_the_default_caps():
+    # fandisk with 1 % noise kept to one chart (--max-charts 1) at alpha 0.1: 563 charts enter the solve
+    # and their sheets need 610 overlap splits; one split per chart (the old default cap) shipped it with
+    # overlapping pairs
+    from uvbake.atlas.guarantee import SPLITS_PER_CHART
+    from uvbake.io import load_mesh
+
+    from conftest import shared_mesh
+
+    m = load_mesh(shared_mesh("fandisk.off"))
+    V = m.V + np.random.default_rng(0).normal(0.0, 0.01 * np.ptp(m.V), m.V.shape)
+    res = uvbake.unwrap((V, m.F), alpha=0.1, max_charts=1, texture_size_px=256)
+    rep = res.report
+    overlap_splits = sum(s["reason"] == "overlap" for s in rep["splits"])
+    assert rep["valid"] and rep["min_texel_share"] >= 1 / 16 and rep["area_below_quarter"] <= 0.005
+    assert overlap_splits <= SPLITS_PER_CHART * rep["charts_input"]     # (their count may differ by a CPU's rounding)
+
+
 def test_a_chart_whose_hole_image_runs_counter_clockwise_is_not_proven_overlap_free():
     # every triangle positive and both boundary loops simple and disjoint, yet the hole's image runs
     # counter-clockwise: the chart lies on both sides of it and covers the hole twice (a part of the cow

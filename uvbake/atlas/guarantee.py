@@ -463,6 +463,10 @@ def _own_conformal_starts(charts, indices, pinch_keys=None):
 
 #: The least cap on the guarantee's splits when none is given (solve_valid's max_splits).
 MIN_SPLITS = 256
+#: Without a given cap, each kind may split this many times per chart entering the solve (at least
+#: MIN_SPLITS): a noisy fandisk at --max-charts 1 needed 558 overlap splits and about 600 distortion ones
+#: for 558 charts, past the one per chart allowed before.
+SPLITS_PER_CHART = 4
 
 
 def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *, max_stretch: float,
@@ -473,7 +477,8 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     starves (or flipped because the start was not valid) is split once per bad region, overlapping
     sheets are split apart, and only the parts are solved again, from the parent's map. Rounds and
     splits are bounded by counts, never by time: every round splits at least one chart, so the
-    splits' caps (``max_splits`` for each kind) bound the rounds too (``max_rounds``, None: no other
+    splits' caps bound the rounds too (``max_splits`` for each kind; None: SPLITS_PER_CHART per chart
+    entering the solve, at least MIN_SPLITS; ``max_rounds``, None: no other
     bound; docs/decisions/atlas.md, eighth session). Only the charts that changed in a round are
     checked in the next.
 
@@ -482,8 +487,8 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     solve and conformal map takes each pinch of a chart as one vertex."""
     note = note or (lambda stage, done, total: None)
     charts, starts = list(charts), list(starts)
-    # one split per chart, at least MIN_SPLITS: a fixed cap left rough scans of many charts invalid
-    max_splits = max(MIN_SPLITS, len(charts)) if max_splits is None else max_splits
+    # four splits per chart, at least MIN_SPLITS: a fixed cap left rough scans of many charts invalid
+    max_splits = max(MIN_SPLITS, SPLITS_PER_CHART * len(charts)) if max_splits is None else max_splits
     results = _solve_flip_free(charts, starts, options, workers, lambda d, n, r: note("solve", d, n), pinch_keys)
     splits: list[dict] = []
     todo = list(range(len(charts)))
