@@ -66,6 +66,34 @@ def test_the_sides_of_a_cut_are_not_welded():
     assert r is not None and r[idx[0, 4]] == idx[0, 0] and np.sum(r != np.arange(len(r))) == 1
 
 
+def _slit_octahedron():
+    """An octahedron slit open at its top vertex: the top's faces on the -y side take a copy of it, so
+    the surface is a disk whose boundary runs +x, top, -x, copy; the two tops share a pinch key."""
+    V = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1], [0, 0, 1]], float)
+    F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 6], [3, 0, 6],           # the top fan, -y side on the copy 6
+                  [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    keys = np.full(len(V), -1)
+    keys[[4, 6]] = 4
+    return V, F, keys
+
+
+def test_copies_whose_weld_would_close_the_chart_stay_apart():
+    # welding the two tops would close the slit and leave the chart no boundary to flatten (a non-manifold
+    # fin detached by repair made such a slit on a scan: the conformal solve then had nothing to pin)
+    V, F, keys = _slit_octahedron()
+    assert pinch_representatives(keys, F) is None
+    uv, logf = conformal_factor(V, F, keys=keys)
+    assert np.all(np.isfinite(uv)) and np.ptp(uv[[4, 6]], axis=0).max() > 1e-6
+    # laid end to end with a chart whose pinch may be welded, only that one is
+    V8, F8, pinch = _figure_eight()
+    rep = repair(V8, F8)
+    k8 = repair_copies(rep.vertex_index)
+    both = pinch_representatives(np.concatenate([keys, k8]), np.vstack([F, rep.F + len(V)]),
+                                 np.repeat([0, 1], [len(V), len(rep.V)]))
+    moved = np.flatnonzero(both != np.arange(len(both)))
+    assert len(moved) == 1 and moved[0] >= len(V)
+
+
 def test_conformal_map_gives_the_copies_one_uv():
     V, F, pinch = _figure_eight()
     rep = repair(V, F)

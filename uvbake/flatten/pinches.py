@@ -71,7 +71,26 @@ def pinch_representatives(keys: np.ndarray, F: np.ndarray, group: np.ndarray | N
     np.minimum.at(first, cls[bv[weld]], bv[weld])
     rep = np.arange(n)
     rep[bv[weld]] = first[cls[bv[weld]]]
+    closed = _closed_by(rep, bnd, group)
+    if closed is not None:         # welding would leave these charts no boundary to flatten: theirs stay apart
+        apart = np.isin(np.zeros(n, np.int64) if group is None else group, closed)
+        rep[apart] = np.arange(n)[apart]
+        if np.array_equal(rep, np.arange(n)):
+            return None
     return rep
+
+
+def _closed_by(rep, bnd, group):
+    """The groups (charts; [0] for one) whose every boundary half-edge finds its opposite once the copies
+    are welded to ``rep`` (a slit whose two sides are copies, closed up), or None."""
+    a, b = rep[bnd[:, 0]], rep[bnd[:, 1]]
+    n = len(rep)
+    fwd, rev = a * n + b, b * n + a
+    left = ~np.isin(fwd, rev)                          # boundary half-edges still without an opposite
+    g = np.zeros(n, np.int64) if group is None else np.asarray(group)
+    had, has = unique_sorted(g[bnd[:, 0]]), unique_sorted(g[bnd[left, 0]])
+    closed = np.setdiff1d(had, has)
+    return closed if len(closed) else None
 
 
 def welded(F: np.ndarray, rep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
