@@ -387,14 +387,14 @@ def test_past_the_chart_budget_charts_whose_conformal_map_collapses_are_still_cu
     # (least share 0.001, 340 charts); cut while collapsing, every texel keeps its share
     import trimesh
 
-    from uvbake.atlas.charting import COLLAPSED_START
+    from uvbake.atlas.guarantee import COLLAPSED
 
     m = trimesh.creation.icosphere(subdivisions=4)
     V = m.vertices + np.random.default_rng(1).normal(0.0, 0.04, m.vertices.shape)
     res = uvbake.unwrap((V, m.faces), alpha=0.0, max_charts=1, texture_size_px=256)
     rep = res.report
     assert rep["valid"] and rep["min_texel_share"] >= 1 / 16 and rep["area_below_quarter"] <= 0.005
-    assert rep["over_budget"] and all(o["least_factor"] > COLLAPSED_START for o in rep["over_budget"]
+    assert rep["over_budget"] and all(o["least_factor"] > COLLAPSED for o in rep["over_budget"]
                                       if o["reason"] == "max_charts")
 
 

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.atlas.conformal import _frames, conformal_factor, conformal_factors
+from uvbake.atlas.guarantee import COLLAPSED
 from uvbake.atlas.opening import nearly_closed, open_holes, slit
 from uvbake.errors import ChartError, InputError
 from uvbake.mesh.arrays import dense_ranks, triangle_areas, unique_sorted, unit_normals
@@ -46,9 +47,6 @@ MIN_PIECE_FACES = 8
 OVERLAP_ROUNDS = 4
 #: Cap on conformal solves per initial chart (work count; a chart past it is kept as it is).
 MAX_SOLVES_PER_CHART = 400
-#: Past the chart budget (max_charts) a chart is still cut while its conformal map takes some triangle's
-#: area factor to this or below (a collapse: the guarantee's COLLAPSED, a validity matter like a flip).
-COLLAPSED_START = 1e-6
 
 
 def check_budget(max_stretch: float, max_charts: int | None) -> tuple[float, int | None]:
@@ -487,9 +485,9 @@ def _decide(st, chart, previous):
 def _kept(st, chart, uv, logf, ok, small):
     """Keep ``chart`` with its map ``uv`` when it is within the budget (``ok``), too small to cut, past the
     chart budget, or a work count says stop (the last three recorded as over the budget); False when it
-    is to be cut. Past the chart budget a chart is still cut while its map collapses triangles (a
-    validity matter, as a flip)."""
-    full = st.full() and bool(np.all(np.isfinite(logf)) and logf.min() > np.log(COLLAPSED_START))
+    is to be cut. Past the chart budget a chart is still cut while its map collapses triangles (area
+    factor COLLAPSED or less: a validity matter, as a flip)."""
+    full = st.full() and bool(np.all(np.isfinite(logf)) and logf.min() > np.log(COLLAPSED))
     if not (ok or small or full or st.solves >= st.budget_solves):
         return False
     if not ok:

@@ -21,7 +21,7 @@ The steps, in order (each vectorised over triangles, half-edges and corners):
 6. non-manifold (bowtie) vertices: one copy of the vertex per edge-connected fan (the largest fan
    keeps the original index); with face labels, also a vertex where one label's triangles form
    several fans (its region touches itself there: a chart never spans two labels, so each label's
-   region must be manifold on its own): one copy per fan of each label there;
+   region must be manifold on its own): every fan of that label there but its largest gets a copy;
 7. consistent winding per connected piece: a BFS spanning tree of the dual graph gives each triangle's
    flip parity (pointer jumping, no Python loop); the orientation of the majority is kept. A
    non-orientable piece (Moebius strip) is cut along the edges where the parity disagrees and
