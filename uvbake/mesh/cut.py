@@ -348,6 +348,11 @@ def _mass(V, F, weights, where):
 
 
 # ------------------------------------------------------------------------------------------ public
+#: Quantiles of the field whose level sets bisect tries, in order, when its sweep's and the median's
+#: sides cannot both be made valid (a side meeting itself at a vertex: a holey torus's label region).
+FALLBACK_LEVELS = (0.4, 0.6, 0.3, 0.7, 0.2, 0.8)
+
+
 def bisect(V: ArrayLike, F: ArrayLike, *, weights: ArrayLike | None = None, seed_faces: ArrayLike | None = None,
            min_fraction: float = MIN_FRACTION) -> np.ndarray:
     """Split one edge-connected chart into two edge-connected parts along a short cut.
@@ -395,6 +400,10 @@ def bisect(V: ArrayLike, F: ArrayLike, *, weights: ArrayLike | None = None, seed
         if labels.min() == labels.max():
             labels = (np.argsort(np.argsort(field, kind="stable")) >= m // 2).astype(np.int64)
         labels, ok = _make_valid(F, len(V), labels, fi, fj, hi, hj)
+        for q in FALLBACK_LEVELS if not ok else ():     # other level sets, nearest the median first
+            labels, ok = _make_valid(F, len(V), (field > np.quantile(field, q)).astype(np.int64), fi, fj, hi, hj)
+            if ok:
+                break
         if not ok:
             raise ChartError(f"bisect: could not cut the chart of {m} triangles into two valid parts; "
                              "repair the mesh (uvbake.mesh.repair.repair) or give it segment labels")
