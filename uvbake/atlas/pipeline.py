@@ -463,7 +463,7 @@ def _load(source, face_labels, repair, weld):
             labels = None if labels is None else labels[rep.face_index]
             colors = None if colors is None else colors[rep.vertex_index]
             V, F = rep.V, rep.F
-            pinch_keys = repair_copies(rep.vertex_index)
+            pinch_keys = repair_copies(rep.vertex_index, V if rep.welded else None)
     return V, F, labels, colors, mesh.source, repair_report, pinch_keys, k
 
 

@@ -15,7 +15,8 @@ cannot drift apart and cross there, and the texture is continuous at it. The cha
 Which vertices are copies of one input vertex is the caller's knowledge, given as ``keys``: one
 integer per vertex, equal and non-negative for copies a repair made, negative otherwise. Vertices at
 the same position that the input itself kept apart are never welded (the input's own cuts stay cuts),
-nor are copies on a boundary edge that has a twin with the same keys (the two sides of a cut).
+unless repair welded the input (a soup, or weld=True: then what stays apart is repair's choice), nor
+are copies on a boundary edge that has a twin with the same keys (the two sides of a cut).
 """
 
 from __future__ import annotations
@@ -26,11 +27,21 @@ from uvbake.mesh.arrays import unique_sorted
 from uvbake.mesh.topology import _edges
 
 
-def repair_copies(vertex_index: np.ndarray) -> np.ndarray | None:
+def repair_copies(vertex_index: np.ndarray, V: np.ndarray | None = None) -> np.ndarray | None:
     """``keys`` of a repaired mesh: each vertex's input vertex where repair made several copies of it,
     -1 elsewhere; None when repair copied no vertex (``vertex_index``: the repair's input vertex of
-    each output vertex)."""
+    each output vertex). With ``V`` (when repair welded coincident vertices: a soup, or weld=True),
+    vertices at exactly one position that the weld left apart (it would have made a bowtie) are copies
+    too: such an input's vertex identity carries no intent, repair chose what stays apart."""
     vertex_index = np.asarray(vertex_index, dtype=np.int64)
+    if V is not None:
+        _, at, count = np.unique(np.asarray(V), axis=0, return_inverse=True, return_counts=True)
+        at = at.ravel()
+        shared = count[at] > 1
+        if shared.any():                               # key a position by its first input vertex
+            first = np.full(len(count), np.iinfo(np.int64).max)
+            np.minimum.at(first, at, vertex_index)
+            vertex_index = np.where(shared, first[at], vertex_index)
     copies = np.bincount(vertex_index)[vertex_index] > 1
     return np.where(copies, vertex_index, -1) if copies.any() else None
 

@@ -80,6 +80,11 @@ class RepairResult:
     def changed(self) -> bool:
         return bool(self.actions)
 
+    @property
+    def welded(self) -> bool:
+        """Coincident vertices were welded (step 2)."""
+        return any(a["kind"] == "weld_vertices" for a in self.actions)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays but the counts)."""
         return {
