@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from uvbake.cli import main
+from uvbake.cli.unwrap import certificate_summary
 from uvbake.io.obj import load_obj_uv
 
 from conftest import SAMPLE_SCENES
@@ -175,3 +176,14 @@ def test_summary_says_when_overlapping_charts_push_packing_past_100_percent(caps
     _summary(rep, 0.5, [])
     out = capsys.readouterr().out
     assert "packing 57.3% of 1024 px at" in out and "overlapping" not in out
+
+
+def test_the_certificate_line_counts_charts_at_the_floor_as_minima():
+    # alpha 1 charts stopped at F's floor are global minima with no lambda_min (null in the report)
+    floor = dict(is_local_minimum=True, lambda_min=None)
+    assert certificate_summary([floor, floor]) == "local minimum: yes, global (F at its floor 0)"
+    assert certificate_summary([floor, dict(is_local_minimum=True, lambda_min=0.25)]) == \
+        "local minimum: yes, lambda_min = 0.25"
+    assert certificate_summary([floor, dict(is_local_minimum=False, lambda_min=-0.5)]) == \
+        "local minimum: no (1 of 2 charts not a certified minimum), lambda_min = -0.5"
+    assert certificate_summary([dict(is_local_minimum=None, lambda_min=None)]) == "local minimum: not certified"

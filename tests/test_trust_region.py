@@ -5,10 +5,12 @@ reuse of the solver's symbolic analysis."""
 import numpy as np
 import pytest
 
-from uvbake.flatten.energy import DistortionEnergy, triangle_frames
+import uvbake.flatten.energy as energy_module
+from uvbake.flatten.energy import FLOOR_TOL, DistortionEnergy, triangle_frames
 from uvbake.flatten.solve import parameterize
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import make_solver
+from uvbake.flatten.solvers.result import Status
 from uvbake.flatten.solvers.trust import SHIFT, steihaug
 from uvbake.flatten.starts import initial_map
 from uvbake.mesh.arrays import unit_scale
@@ -231,3 +233,24 @@ def test_slivers_do_not_set_the_preconditioners_shift(monkeypatch):
     monkeypatch.setattr(trust, "SPREAD", np.inf)
     slow = parameterize(V, F, alpha=0.5, max_iter=100)
     assert slow.stop_reason == "max_iter" and slow.energy > r.energy * (1 + 1e-7) and slow.grad_norm > 2 * r.grad_norm
+
+
+@pytest.mark.parametrize("step", ["trust", "damped"])
+def test_an_area_only_solve_stops_at_the_floor_of_f(step, monkeypatch):
+    # alpha 1: every area-preserving map is a minimum, F = 0, a continuum along which H is singular. The
+    # solve stops once every triangle's area is within FLOOR_TOL of its own (F >= 0, so a global minimum
+    # to that tolerance) rather than creeping along the family to the gradient test
+    V, F = bumpy_disk(14)
+    res = parameterize(V, F, alpha=1.0, step=step)
+    assert res.status == Status.AT_FLOOR and res.converged and res.is_local_minimum
+    assert "global" in res.certificate_line()
+    Vn, unit = unit_scale(V, F)
+    det = DistortionEnergy(Vn, F, alpha=1.0).determinants(res.uv / unit)
+    assert np.max(np.abs(det - 1.0)) <= FLOOR_TOL * (1 + 1e-9)
+    assert res.n_flipped == 0                              # det >= 1 - FLOOR_TOL > 0
+    monkeypatch.setattr(energy_module, "FLOOR_TOL", 0.0)   # the gradient test alone
+    plain = parameterize(V, F, alpha=1.0, step=step)
+    assert plain.status == Status.CONVERGED
+    assert res.iterations < plain.iterations
+    # at alpha < 1 the minima are isolated and the rule is not used
+    assert parameterize(V, F, alpha=0.9, step=step).status == Status.CONVERGED

@@ -380,12 +380,14 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
 def certificate_summary(charts: list[dict[str, Any]]) -> str:
     """One line from the per-chart certificates of the JSON report: 'local minimum: yes, lambda_min = ...'
     (the smallest over charts)."""
-    lams = [c["lambda_min"] for c in charts if c.get("is_local_minimum") is not None]
-    if not lams:
+    known = [c for c in charts if c.get("is_local_minimum") is not None]
+    if not known:
         return "local minimum: not certified"
-    bad = sum(1 for c in charts if c.get("is_local_minimum") is False)
+    bad = sum(1 for c in known if c["is_local_minimum"] is False)
     word = "yes" if bad == 0 else f"no ({bad} of {len(charts)} charts not a certified minimum)"
-    return f"local minimum: {word}, lambda_min = {min(lams):.3g}"
+    # charts stopped at F's floor (alpha = 1) are global minima and carry no lambda_min
+    lams = [c["lambda_min"] for c in known if c.get("lambda_min") is not None]
+    return f"local minimum: {word}" + (f", lambda_min = {min(lams):.3g}" if lams else ", global (F at its floor 0)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -38,7 +38,7 @@ from uvbake.flatten.holes import holes
 from uvbake.flatten.options import SolveOptions
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import make_solver
-from uvbake.flatten.solvers.result import ParamResult
+from uvbake.flatten.solvers.result import ParamResult, Status, minimum_flag
 from uvbake.mesh.arrays import signed_areas, unit_scale
 
 #: Charts of at most this many triangles may be solved together.
@@ -115,8 +115,10 @@ def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[n
     f = _part_energies(energy, uvn, fpart, len(items))
     det = energy.determinants(uvn)
     flipped = np.bincount(fpart, weights=det <= 0, minlength=len(items)).astype(np.int64)
+    floor = info.status == Status.AT_FLOOR        # alpha = 1: a global minimum to FLOOR_TOL, nothing to certify
+    reached = (gnorm < options.tol) | floor
     cert = info.extra.get("certificate")
-    if cert is None and options.certificate:
+    if cert is None and options.certificate and not floor:
         cert = certify(energy, uvn, linear_solver=options.linear_solver, solver=solver)
     share = time.perf_counter() - t0
     joint = dict(charts=len(items), triangles=int(nf.sum()), iterations=int(info.iterations))
@@ -130,12 +132,12 @@ def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[n
         ff = _flip_free_uv(energy, info, det[fk], uv0, 1.0)
         out.append(ParamResult(
             uv=uvn[v] * units[k], energy=float(f[k]), grad_norm=float(gnorm[k]), iterations=int(info.iterations),
-            converged=bool(gnorm[k] < options.tol), n_flipped=int(flipped[k]), history=np.asarray(info.history),
+            converged=bool(reached[k]), n_flipped=int(flipped[k]), history=np.asarray(info.history),
             time_s=share * nf[k] / nf.sum(), alpha=options.alpha, init="given", backend=options.backend,
             energy_init=float(f_init[k]), stop_reason=info.message, n_evaluations=int(info.evaluations),
             extra=dict(extra),
             status=info.status, lambda_min=cert.lambda_min if cert else float("nan"),
-            is_local_minimum=(bool(gnorm[k] < options.tol) and cert.is_local_minimum) if cert else None,
+            is_local_minimum=minimum_flag(info.status, bool(reached[k]), cert),
             flip_free_uv=None if ff is None else ff[v] * units[k]))
     return out
 

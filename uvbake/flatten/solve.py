@@ -42,7 +42,7 @@ from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.lbfgs import lbfgs
 from uvbake.flatten.solvers.linalg import cholmod_available, make_solver, one_blas_thread
 from uvbake.flatten.solvers.lm import levenberg_marquardt
-from uvbake.flatten.solvers.result import ParamResult, SolveResult
+from uvbake.flatten.solvers.result import ParamResult, SolveResult, Status, minimum_flag
 from uvbake.flatten.solvers.trust import trust_region
 from uvbake.flatten.starts import farthest_boundary_pair, initial_map
 from uvbake.mesh.arrays import signed_areas, unique_sorted, unit_scale
@@ -155,8 +155,10 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
     det = energy.determinants(uvn)[:m]
+    floor = info.status == Status.AT_FLOOR    # alpha = 1: a global minimum to FLOOR_TOL, nothing to certify
+    converged = bool(grad_norm < options.tol or floor)
     cert = info.extra.get("certificate")      # the trust region's own second-order test, at uvn
-    if cert is None and options.certificate:
+    if cert is None and options.certificate and not floor:
         cert = certify(energy, uvn, linear_solver=options.linear_solver, solver=solver)
     n = len(V)                                # the chart's own vertices (hole fans dropped)
     flip_free = _flip_free_uv(energy, info, det, uv_start, unit)
@@ -165,7 +167,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         energy=chart_energy(energy, uvn, m),
         grad_norm=float(grad_norm),
         iterations=int(iterations),
-        converged=bool(grad_norm < options.tol),
+        converged=converged,
         n_flipped=int(np.count_nonzero(det <= 0)),
         history=np.asarray(history),
         time_s=time.perf_counter() - t0,
@@ -178,7 +180,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         extra=extra,
         status=info.status,
         lambda_min=cert.lambda_min if cert else float("nan"),
-        is_local_minimum=(bool(grad_norm < options.tol) and cert.is_local_minimum) if cert else None,
+        is_local_minimum=minimum_flag(info.status, converged, cert),
         flip_free_uv=None if flip_free is None else flip_free[:n],
     )
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
-from uvbake.flatten.solvers.result import SolveResult, Status
+from uvbake.flatten.solvers.result import SolveResult, Status, final_status
 
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
@@ -94,6 +94,9 @@ def levenberg_marquardt(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: n
         lam = max(lam, s.second_order_test())
     while s.it < max_iter and stop == Status.MAX_ITER:
         check_cancelled()                            # SIGINT/SIGTERM: stop within one iteration
+        if s.floor:
+            stop = Status.AT_FLOOR
+            break
         if s.gnorm < tol:
             stop = Status.CONVERGED
             break
@@ -108,10 +111,9 @@ def levenberg_marquardt(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: n
         if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=lam,
                                                   accepted=accepted, reason=_reason(step))):
             stop = Status.CALLBACK if stop == Status.MAX_ITER else stop
-    if stop == Status.MAX_ITER and s.gnorm < tol:
-        stop = Status.CONVERGED
+    stop, reached = final_status(stop, s.gnorm, tol, s.floor)
     return s.x, SolveResult(energy=float(s.f), grad_norm=s.gnorm, iterations=s.it, evaluations=s.n_eval,
-                            converged=bool(s.gnorm < tol), history=np.asarray(s.history), status=stop,
+                            converged=reached, history=np.asarray(s.history), status=stop,
                             solve_time_s=time.perf_counter() - t0,
                             extra=dict(linear_solver=s.solver.name, saddle_escapes=s.escapes))
 
@@ -163,6 +165,7 @@ class _LMState:
     def move(self, x):
         self.x = x
         self.f, self.g, _ = self.energy.evaluate(self.energy.to_uv(x, self.uv_fixed), out=self.H)
+        self.floor = self.energy.at_floor            # alpha = 1: a global minimum to FLOOR_TOL
         self.n_eval += 1
         self.gnorm = float(np.linalg.norm(self.g))
 

@@ -23,6 +23,7 @@ class Status(IntEnum):
     NON_FINITE_START = 4
     STEP_TOO_SMALL = 5
     DAMPING_DIVERGED = 6
+    AT_FLOOR = 7  # alpha = 1: every triangle's area within FLOOR_TOL of its own, F at its global minimum 0
     NLOPT_SUCCESS = 10
     NLOPT_STOPVAL = 11
     NLOPT_FTOL = 12
@@ -44,6 +45,7 @@ MESSAGES: dict[Status, str] = {
     Status.NON_FINITE_START: "non-finite start",
     Status.STEP_TOO_SMALL: "step too small",
     Status.DAMPING_DIVERGED: "damping diverged",
+    Status.AT_FLOOR: "at floor",
     Status.NLOPT_SUCCESS: "nlopt success",
     Status.NLOPT_STOPVAL: "nlopt stopval",
     Status.NLOPT_FTOL: "nlopt ftol",
@@ -55,6 +57,24 @@ MESSAGES: dict[Status, str] = {
     Status.NLOPT_FAILURE: "nlopt failure",
     Status.REFRESH: "refresh",
 }
+
+
+def final_status(stop: Status, grad_norm: float, tol: float, floor: bool) -> tuple[Status, bool]:
+    """A second-order backend's status at its end (a run cut at MAX_ITER that reached the tolerance or
+    F's floor says so) and whether it reached a minimum."""
+    reached = bool(grad_norm < tol or floor)
+    if stop == Status.MAX_ITER and reached:
+        stop = Status.AT_FLOOR if floor else Status.CONVERGED
+    return stop, reached
+
+
+def minimum_flag(status: Status | None, converged: bool, cert: Any) -> bool | None:
+    """``is_local_minimum`` of a chart's result: True at F's floor (alpha = 1: a global minimum to
+    :data:`uvbake.flatten.energy.FLOOR_TOL`, nothing to certify), else converged and certified; None
+    without a certificate."""
+    if status == Status.AT_FLOOR:
+        return True
+    return bool(converged and cert.is_local_minimum) if cert else None
 
 
 @dataclass
@@ -131,7 +151,9 @@ class ParamResult:
         frame (the paper's Table 3 certificate; :mod:`uvbake.flatten.solvers.certificate`); NaN when
         not computed.
     is_local_minimum : bool or None
-        Converged and lambda_min non-negative (to 1e-9 of the Hessian's largest diagonal entry).
+        Converged and lambda_min non-negative (to 1e-9 of the Hessian's largest diagonal entry); True
+        with lambda_min NaN when the solve stopped at F's floor (``Status.AT_FLOOR``, alpha = 1), a
+        global minimum to :data:`uvbake.flatten.energy.FLOOR_TOL`.
     """
 
     uv: np.ndarray
@@ -159,6 +181,8 @@ class ParamResult:
         """The summary line of the second-order certificate."""
         if self.is_local_minimum is None:
             return "local minimum: not certified"
+        if self.status == Status.AT_FLOOR:
+            return "local minimum: yes, global (F at its floor 0)"
         word = "yes" if self.is_local_minimum else ("no (not converged)" if not self.converged else "no (saddle)")
         return f"local minimum: {word}, lambda_min = {self.lambda_min:.3g}"
 
