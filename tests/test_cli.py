@@ -187,3 +187,15 @@ def test_the_certificate_line_counts_charts_at_the_floor_as_minima():
     assert certificate_summary([floor, dict(is_local_minimum=False, lambda_min=-0.5)]) == \
         "local minimum: no (1 of 2 charts not a certified minimum), lambda_min = -0.5"
     assert certificate_summary([dict(is_local_minimum=None, lambda_min=None)]) == "local minimum: not certified"
+
+
+def test_ignore_materials_lets_charts_span_them(tmp_path):
+    # a flat strip of two quads under two materials: two charts by default, one with --ignore-materials
+    obj = tmp_path / "strip.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nv 1 1 0\nv 2 1 0\n"
+                   "usemtl a\nf 1 2 5 4\nusemtl b\nf 2 3 6 5\n")
+    for flags, charts in (([], 2), (["--ignore-materials"], 1)):
+        rep = tmp_path / f"r{charts}.json"
+        assert main([str(obj), "-q", "-o", str(tmp_path / f"o{charts}.obj"), "--json", str(rep), *flags]) == 0
+        report = json.loads(rep.read_text())
+        assert report["charts_final"] == charts and report["options"]["materials"] is (charts == 2)

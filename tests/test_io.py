@@ -590,3 +590,31 @@ def test_a_utf8_byte_order_mark_is_not_data(tmp_path, ext, body):
 def _write(path, data):
     path.write_bytes(data)
     return path
+
+
+def _two_material_obj(path, materials):
+    """A 4 x 2 grid of quads (16 triangles) whose columns take ``materials`` in turn (None: no usemtl)."""
+    lines = [f"v {x} {y} 0" for y in range(3) for x in range(5)]
+    for col in range(4):
+        if materials[col] is not None:
+            lines.append(f"usemtl {materials[col]}")
+        for row in range(2):
+            a = row * 5 + col + 1
+            lines.append(f"f {a} {a + 1} {a + 6} {a + 5}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_obj_materials_label_the_faces(tmp_path):
+    # each quad is two triangles; labels number the materials in order of first use, faces before any
+    # usemtl being a label of their own
+    m = load_mesh(_two_material_obj(tmp_path / "a.obj", [None, "wood", "metal", "wood"]))
+    assert m.face_labels.tolist() == [0] * 4 + [1] * 4 + [2] * 4 + [1] * 4
+    m = load_mesh(_two_material_obj(tmp_path / "b.obj", ["wood", "metal", "metal", "glass"]))
+    assert m.face_labels.tolist() == [0] * 4 + [1] * 8 + [2] * 4
+    # one material, or the same one named twice: no labels
+    assert load_mesh(_two_material_obj(tmp_path / "c.obj", ["wood", None, "wood", None])).face_labels is None
+    assert load_mesh(_two_material_obj(tmp_path / "d.obj", [None] * 4)).face_labels is None
+    # ignored on request; face_labels given still override
+    assert load_mesh(tmp_path / "a.obj", materials=False).face_labels is None
+    assert load_mesh(tmp_path / "a.obj", face_labels=np.zeros(16, int)).face_labels.tolist() == [0] * 16

@@ -7,6 +7,7 @@ import pytest
 
 import uvbake
 from uvbake.atlas.pipeline import unwrap
+from uvbake.errors import InputError
 
 from meshgen import bumpy_disk, grid, helical_strip
 
@@ -269,3 +270,26 @@ def test_charts_that_no_packing_can_hold_are_refused_before_the_solve(monkeypatc
         unwrap((V, F), texture_size_px=16, gutter_px=2)
     # a bound, never a guess: 4 charts in the same atlas pass it (and pack: tests/test_pack.py)
     pipeline._check_room(4, dict(texture_size_px=16, texel_density=None, gutter_px=2, mip_levels=None, guarantee=True))
+
+
+def test_no_chart_spans_two_obj_materials(tmp_path):
+    # a flat 10 x 10 grid, its left and right halves under two materials: one chart without them,
+    # two along the material border with them, as xatlas keeps charts within a material
+    n = 10
+    lines = ["mtllib m.mtl"] + [f"v {x} {y} 0" for y in range(n + 1) for x in range(n + 1)]
+    for half, name in ((range(n // 2), "left"), (range(n // 2, n), "right")):
+        lines.append(f"usemtl {name}")
+        lines += [f"f {y * (n + 1) + x + 1} {y * (n + 1) + x + 2} {(y + 1) * (n + 1) + x + 2} {(y + 1) * (n + 1) + x + 1}"
+                  for y in range(n) for x in half]
+    path = tmp_path / "two.obj"
+    path.write_text("\n".join(lines) + "\n")
+    res = uvbake.unwrap(str(path), texture_size_px=256)
+    assert res.report["valid"] and res.report["options"]["materials"] is True
+    assert len(res.charts) == 2
+    x = res.V[res.F].mean(axis=1)[:, 0]
+    for c in range(2):
+        side = x[res.chart_ids == c] < n / 2
+        assert side.all() or not side.any()                 # each chart on one side of the border
+    assert len(uvbake.unwrap(str(path), texture_size_px=256, materials=False).charts) == 1
+    with pytest.raises(InputError, match="materials"):
+        uvbake.unwrap(str(path), materials="yes")

@@ -25,12 +25,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uvbake.analysis.metrics import chart_distortions, distortion_summary
+from uvbake.atlas.source import load_source
 from uvbake.atlas.units import to_input_units, working_density
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.options import DEFAULTS, SolveOptions
 from uvbake.flatten.solve import parameterize_charts
-from uvbake.mesh.arrays import unit_exponent
 from uvbake.mesh.topology import face_adjacency
 
 #: More separate pieces than this is refused up front, before any work: each piece becomes at least
@@ -116,7 +116,7 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
            max_splits: int | None = None, continuation: bool = DEFAULTS.continuation, workers: int | None = None,
            progress: Callable[[str, int, int], None] | None = None, callback: Callable | None = None,
            texel_density: float | None = None, mip_levels: int | None = None,
-           pack_splits: bool = True) -> UnwrapResult:
+           pack_splits: bool = True, materials: bool = True) -> UnwrapResult:
     """Unwrap a mesh into a validated texture atlas.
 
     Parameters
@@ -127,6 +127,9 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
         not: with ``guarantee=False``).
     face_labels : (m,) int array, optional
         Per-face segment labels (overrides labels stored in the file). A chart never spans two labels.
+    materials : bool
+        An OBJ file whose faces use two or more materials (``usemtl``) is labelled by material, so no
+        chart spans two (as xatlas does); False: materials are ignored.
     texture_size_px : int, (int, int) or None
         Side of the square texture (16 to 16384), or (width, height) for a rectangular one; None (with
         ``texel_density``): the atlas grows to fit.
@@ -184,7 +187,7 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
                        auto_cut=auto_cut, repair=repair, weld=weld, guarantee=guarantee, max_stretch=max_stretch,
                        max_charts=max_charts, max_splits=max_splits, continuation=continuation, workers=workers,
                        progress=progress, callback=callback, texel_density=texel_density, mip_levels=mip_levels,
-                       pack_splits=pack_splits)
+                       pack_splits=pack_splits, materials=materials)
 
 
 @dataclass
@@ -226,6 +229,8 @@ def _unwrap(source, **opts):
                                             opts["mip_levels"])
     opts["max_stretch"], opts["max_charts"] = check_budget(
         DEFAULT_MAX_STRETCH if opts["max_stretch"] is None else opts["max_stretch"], opts["max_charts"])
+    if not isinstance(opts["materials"], bool):
+        raise InputError(f"materials={opts['materials']!r} must be True or False (label OBJ faces by material)")
     if opts["weld"] not in (None, True, False):
         raise InputError(f"weld={opts['weld']!r} must be True, False or None (weld only soup-like input)")
     run = _Run(opts, solve_options, _noter(opts["progress"]), {})
@@ -290,8 +295,8 @@ def _per_iteration(note, callback, max_iter):
 def _stage_load(run, source):
     opts = run.opts
     t = time.perf_counter()
-    run.V, run.F, run.labels, run.colors, run.source_name, run.repair_report, run.pinch_keys, run.k = _load(
-        source, opts["face_labels"], opts["repair"], opts["weld"])
+    run.V, run.F, run.labels, run.colors, run.source_name, run.repair_report, run.pinch_keys, run.k = load_source(
+        source, opts["face_labels"], opts["repair"], opts["weld"], opts["materials"])
     if opts["bake"] == "vertex-colors" and run.colors is None:
         raise InputError(f"{run.source_name}: has no vertex colours to bake; use --bake-mode checker")
     run.timings["load_repair_s"] = time.perf_counter() - t
@@ -392,7 +397,7 @@ def _report(run, corner_uv, packed, verdict):
     texels = texel_summary(run.V, run.F, corner_uv)
     per_chart = chart_distortions([c.V for c in charts], [c.F for c in charts], [r.uv for r in results])
     shown = ("texture_size_px", "gutter_px", "bake", "auto_cut", "repair", "weld", "guarantee", "max_stretch",
-             "max_charts", "texel_density", "mip_levels", "pack_splits")
+             "max_charts", "texel_density", "mip_levels", "pack_splits", "materials")
     report = {
         "input": run.source_name,
         "vertices": int(len(run.V)),
@@ -435,36 +440,6 @@ def _pinches_welded(run):
 
     return pinch_count([run.pinch_keys[c.vertex_map] for c in run.charts], [c.F for c in run.charts],
                        [len(c.V) for c in run.charts])
-
-
-def _load(source, face_labels, repair, weld):
-    """Load and (optionally) repair: V, F, labels, colours, the source's name, the repair report, the
-    pinch keys (:func:`uvbake.flatten.pinches.repair_copies`, or None) and the exponent of the scale."""
-    from uvbake.io.load import load_mesh
-    from uvbake.mesh.arrays import check_arrays
-
-    mesh = load_mesh(source, face_labels=face_labels)
-    V, F, labels, colors = mesh.V, mesh.F, mesh.face_labels, mesh.vertex_colors
-    # NaN or infinite coordinates are corrupt data, not a reconstruction artefact: refuse them
-    # (naming the vertices) rather than silently dropping faces
-    V, F = check_arrays(V, F, where=str(mesh.source))
-    # any finite scale: work near unit size by a power of two (exact), export the input's coordinates
-    k = unit_exponent(V)
-    k = k if abs(k) > 64 else 0
-    V = np.ldexp(V, -k) if k else V
-    repair_report, pinch_keys = None, None
-    if repair:
-        from uvbake.flatten.pinches import repair_copies
-        from uvbake.mesh.repair import repair as repair_mesh
-
-        rep = repair_mesh(V, F, weld=weld, face_labels=labels)
-        repair_report = rep.to_dict()
-        if rep.actions:
-            labels = None if labels is None else labels[rep.face_index]
-            colors = None if colors is None else colors[rep.vertex_index]
-            V, F = rep.V, rep.F
-            pinch_keys = repair_copies(rep.vertex_index, V if rep.welded else None)
-    return V, F, labels, colors, mesh.source, repair_report, pinch_keys, k
 
 
 def _count_pieces(F, n_vertices, labels):

@@ -32,8 +32,8 @@ DESCRIPTION = (
     "Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle\n"
     "distortion minimiser (Levenberg-Marquardt), split charts until no triangle is flipped\n"
     "or overlapping, pack them, bake a texture and write the textured mesh and a report.\n"
-    "Charts come from a per-face segment label (PLY face property 'segment', 'label', ...)\n"
-    "and connected components."
+    "Charts come from a per-face segment label (PLY face property 'segment', 'label', ...;\n"
+    "an OBJ file's materials), connected components and the distortion budget."
 )
 
 EPILOG = (
@@ -122,6 +122,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--max-charts", type=_typed(int, 1), default=None, metavar="N",
                    help="chart budget: stop cutting for the distortion budget at N charts (charts whose "
                         "conformal map collapses triangles are still cut, and the guarantee's splits may add some)")
+    g.add_argument("--ignore-materials", action="store_true",
+                   help="let charts span OBJ materials (default: faces under two or more 'usemtl' materials "
+                        "are labelled by material, so no chart spans two)")
     g.add_argument("--weld", action="store_true",
                    help="weld coincident boundary vertices (default: only for triangle soups; a mesh's own "
                         "cuts stay cuts)")
@@ -299,7 +302,8 @@ def _solve(args: argparse.Namespace, mode: str | None) -> Any:
                     bake=mode, auto_cut=not args.no_auto_cut, repair=not args.no_repair,
                     guarantee=not args.paper, continuation=not args.paper, workers=args.workers,
                     max_stretch=args.max_stretch, max_charts=args.max_charts, weld=True if args.weld else None,
-                    pack_splits=not args.no_pack_splits, progress=bar.stage, callback=bar.iteration)
+                    pack_splits=not args.no_pack_splits, materials=not args.ignore_materials,
+                    progress=bar.stage, callback=bar.iteration)
     if args.cross_check:
         result.report["cross_check"] = cross_check_charts(result.charts, result.results, alpha=args.alpha,
                                                           init=args.init, tol=args.tol, max_iter=args.max_iter,

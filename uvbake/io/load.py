@@ -22,7 +22,8 @@ Loading rules (what the rest of uvbake can rely on):
   mesh of several pieces one disconnected "chart".
 - OBJ files are read by :func:`load_obj_uv` (not trimesh), so the ``v`` order and ``f`` indices
   are kept even where texture seams exist: reading back what :func:`save_obj` wrote gives the same
-  V, F and the exact UVs.
+  V, F and the exact UVs. Their faces are labelled by material (``usemtl``) when they use two or
+  more (``materials=False``: not).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ LABEL_NAMES = ("segment", "label", "segment_id", "chart", "chart_id", "region")
 # loading
 
 
-def load_mesh(source: Any, *, face_labels: ArrayLike | None = None) -> MeshData:
+def load_mesh(source: Any, *, face_labels: ArrayLike | None = None, materials: bool = True) -> MeshData:
     """Read a triangle mesh from a file, arrays, a trimesh or an Open3D mesh.
 
     Parameters
@@ -59,6 +60,9 @@ def load_mesh(source: Any, *, face_labels: ArrayLike | None = None) -> MeshData:
         a tensor ``open3d.t.geometry.TriangleMesh``.
     face_labels : (m,) integer array_like, optional
         Segment label per (triangulated) face; overrides labels stored in the source.
+    materials : bool
+        Label an OBJ file's faces by their material (``usemtl``) when it uses two or more, so no chart
+        spans two materials (False: materials are ignored).
 
     Returns
     -------
@@ -72,6 +76,8 @@ def load_mesh(source: Any, *, face_labels: ArrayLike | None = None) -> MeshData:
     """
     if isinstance(source, (str, os.PathLike)):
         mesh = _load_path(Path(source))
+        if not materials and Path(source).suffix.lower() == ".obj":
+            mesh.face_labels = None
     elif isinstance(source, tuple):
         mesh = _from_arrays(source)
     elif hasattr(source, "vertex") and hasattr(source, "triangle"):

@@ -25,6 +25,9 @@ def load_obj_uv(path: str | os.PathLike[str]) -> tuple[MeshData, np.ndarray | No
     -------
     mesh : MeshData
         ``v`` lines in file order (``v x y z r g b`` gives colours), ``f`` lines fan-triangulated.
+        Faces under two or more materials (``usemtl``) are labelled by material, numbered in order of
+        first use (faces before any ``usemtl`` form one more label), as xatlas keeps charts within a
+        material; one material or none: no labels.
     uv : (k,2) float64 array or None
         The ``vt`` lines.
     uv_faces : (m,3) int64 array or None
@@ -41,7 +44,7 @@ def load_obj_uv(path: str | os.PathLike[str]) -> tuple[MeshData, np.ndarray | No
     try:
         # utf-8-sig: a byte-order mark (Windows tools) is not part of the first line
         with open(path, encoding="utf-8-sig", errors="strict") as f:
-            verts, colors, uvs, tris, tri_uv, all_uv = _parse_obj(f)
+            verts, colors, uvs, tris, tri_uv, all_uv, materials = _parse_obj(f)
     except (ValueError, UnicodeDecodeError) as exc:
         reason = " ".join(str(exc).split())[:120]
         raise InputError(f"{name}: cannot read as OBJ ({reason}); "
@@ -53,7 +56,8 @@ def load_obj_uv(path: str | os.PathLike[str]) -> tuple[MeshData, np.ndarray | No
     if all(c is not None for c in colors):
         vertex_colors = np.asarray(colors, dtype=np.float64)
     F = np.asarray(tris, dtype=np.int64).reshape(-1, 3)
-    mesh = _make(np.asarray(verts, dtype=np.float64), F, vertex_colors, None, name)
+    labels = _material_labels(materials, len(F))
+    mesh = _make(np.asarray(verts, dtype=np.float64), F, vertex_colors, labels, name)
     uv = np.asarray(uvs, dtype=np.float64).reshape(-1, 2) if uvs else None
     uv_faces = None
     if uv is not None and tri_uv and all_uv:
@@ -64,9 +68,23 @@ def load_obj_uv(path: str | os.PathLike[str]) -> tuple[MeshData, np.ndarray | No
     return mesh, uv, uv_faces
 
 
+def _material_labels(materials, m):
+    """Per-triangle labels from ``materials`` ([(first triangle, name)] in file order), or None when the
+    faces use fewer than two materials."""
+    starts = [0] + [t for t, _ in materials]
+    names = [None] + [name for _, name in materials]
+    counts = np.diff(np.asarray(starts + [m]))
+    used = [name for name, c in zip(names, counts) if c > 0]
+    if len(set(used)) < 2:
+        return None
+    number = {name: i for i, name in enumerate(dict.fromkeys(used))}
+    return np.repeat(np.asarray([number.get(name, 0) for name in names], dtype=np.int64), counts)
+
+
 def _parse_obj(lines):
-    """The v (with colours), vt and fan-triangulated f lines of an OBJ file; ValueError names a bad line."""
-    verts, colors, uvs, tris, tri_uv = [], [], [], [], []
+    """The v (with colours), vt and fan-triangulated f lines of an OBJ file, and where each ``usemtl``
+    starts (first triangle, material); ValueError names a bad line."""
+    verts, colors, uvs, tris, tri_uv, materials = [], [], [], [], [], []
     all_uv = True
     for line_no, line in enumerate(lines, 1):
         parts = line.split()
@@ -85,7 +103,9 @@ def _parse_obj(lines):
             uvs.append(uv + [0.0] * (2 - len(uv)))      # 'vt u' means v = 0 (OBJ spec)
         elif tag == "f":
             all_uv = _parse_face(parts, line_no, len(verts), len(uvs), tris, tri_uv) and all_uv
-    return verts, colors, uvs, tris, tri_uv, all_uv
+        elif tag == "usemtl":
+            materials.append((len(tris), " ".join(parts[1:])))
+    return verts, colors, uvs, tris, tri_uv, all_uv, materials
 
 
 def _parse_face(parts, line_no, n_verts, n_uvs, tris, tri_uv):
