@@ -472,7 +472,7 @@ def test_own_readers_agree_with_trimesh_on_every_sample_scene_and_research_mesh(
     paths += sorted(shared.glob("*.off")) if shared.is_dir() else []
     read = 0
     for path in paths:
-        ours = uload._read_binary_ply(path) if path.suffix == ".ply" else uload._read_off_triangles(path)
+        ours = uload._read_own_ply(path) if path.suffix == ".ply" else uload._read_off_triangles(path)
         if ours is None:                                  # e.g. halftunnel's quads: trimesh reads them
             continue
         read += 1
@@ -521,17 +521,22 @@ def test_coff_vertex_colours_are_read(tmp_path):
     assert load_mesh(plain).vertex_colors is None
 
 
+@pytest.mark.parametrize("encoding", ["binary_little_endian", "ascii"])
 @pytest.mark.parametrize("ptype, fmt, values", [("uchar", "B", (255, 51, 0)), ("ushort", "H", (65535, 13107, 0)),
                                                 ("float", "f", (1.0, 0.2, 0.0)), ("float", "f", (255.0, 51.0, 0.0))])
-def test_binary_ply_colours_of_any_depth_come_out_in_unit_range(tmp_path, ptype, fmt, values):
-    # 16-bit colours (some scanners) over 65535, not taken as 8-bit and clipped; float 0-255 over 255
+def test_ply_colours_of_any_depth_come_out_in_unit_range(tmp_path, ptype, fmt, values, encoding):
+    # 16-bit colours (some scanners) over 65535, not taken as 8-bit and clipped; float 0-255 over 255;
+    # in ASCII files too (trimesh clips 16-bit ones to 255)
     import struct
 
     V = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
-    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+    head = (f"ply\nformat {encoding} 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
             f"property float z\nproperty {ptype} red\nproperty {ptype} green\nproperty {ptype} blue\n"
             "element face 1\nproperty list uchar int vertex_indices\nend_header\n").encode()
-    body = b"".join(struct.pack("<fff" + 3 * fmt, *v, *values) for v in V) + struct.pack("<Biii", 3, 0, 1, 2)
+    if encoding == "ascii":
+        body = "".join(" ".join(map(str, (*v, *values))) + "\n" for v in V).encode() + b"3 0 1 2\n"
+    else:
+        body = b"".join(struct.pack("<fff" + 3 * fmt, *v, *values) for v in V) + struct.pack("<Biii", 3, 0, 1, 2)
     path = tmp_path / "c.ply"
     path.write_bytes(head + body)
     assert np.allclose(load_mesh(path).vertex_colors, [[1.0, 0.2, 0.0]] * 3, rtol=0, atol=1e-7)

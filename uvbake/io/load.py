@@ -39,7 +39,7 @@ from uvbake.errors import InputError
 from uvbake.io.formats import MESH_EXTENSIONS
 from uvbake.io.meshdata import MeshData, _check_labels, _make
 from uvbake.io.obj import load_obj_uv
-from uvbake.io.ply import BOM, _ply_face_property_names, check_ply_complete, read_ply_elements
+from uvbake.io.ply import BOM, _ply_face_property_names, _ply_header, check_ply_complete, read_ply_elements
 
 #: Face property names read as per-face segment labels, first found wins.
 LABEL_NAMES = ("segment", "label", "segment_id", "chart", "chart_id", "region")
@@ -104,7 +104,7 @@ def _load_path(path: Path) -> MeshData:
     if ext == ".obj":
         return load_obj_uv(path)[0]
     # own readers for the common files: importing trimesh costs ~0.6 s of CPU (it pulls networkx)
-    simple = _read_binary_ply(path) if ext == ".ply" else _read_off_triangles(path) if ext == ".off" else None
+    simple = _read_own_ply(path) if ext == ".ply" else _read_off_triangles(path) if ext == ".off" else None
     if simple is not None:
         return simple
 
@@ -333,11 +333,14 @@ def _unit_colors(rgb: np.ndarray) -> np.ndarray:
     return np.clip(rgb / 255.0 if rgb.max(initial=0.0) > 1.0 else rgb, 0.0, 1.0)
 
 
-def _read_binary_ply(path: Path) -> MeshData | None:
-    """A binary PLY of triangles, read without trimesh; None for anything else (trimesh reads it)."""
+def _read_own_ply(path: Path) -> MeshData | None:
+    """A binary PLY of triangles, or an ASCII one whose colours are not 8-bit (trimesh clips 16-bit ones
+    to 255), read without trimesh; None for anything else (trimesh reads it)."""
     with open(path, "rb") as f:
         head = f.read(256).split(b"\n")
-    if len(head) < 2 or head[0].strip() != b"ply" or not head[1].startswith(b"format binary"):
+    if len(head) < 2 or head[0].strip() != b"ply":
+        return None
+    if not head[1].startswith(b"format binary") and not _wide_ascii_colours(path):
         return None
     try:
         elements = read_ply_elements(path)
@@ -352,6 +355,16 @@ def _read_binary_ply(path: Path) -> MeshData | None:
         if isinstance(exc, InputError):
             raise
         return None
+
+
+def _wide_ascii_colours(path: Path) -> bool:
+    """Whether ``path`` is an ASCII PLY whose vertex colours are stored wider than 8 bits."""
+    try:
+        fmt, elements, _ = _ply_header(path)
+    except (ValueError, KeyError, IndexError):
+        return False
+    props = {name: dtype for el, _, plist in elements if el == "vertex" for name, dtype, item in plist if item is None}
+    return fmt == "ascii" and any(props.get(c) not in (None, "u1") for c in ("red", "r", "diffuse_red"))
 
 
 def _read_off_triangles(path: Path) -> MeshData | None:
