@@ -199,3 +199,15 @@ def test_ignore_materials_lets_charts_span_them(tmp_path):
         assert main([str(obj), "-q", "-o", str(tmp_path / f"o{charts}.obj"), "--json", str(rep), *flags]) == 0
         report = json.loads(rep.read_text())
         assert report["charts_final"] == charts and report["options"]["materials"] is (charts == 2)
+
+
+def test_a_distortion_budget_left_unkept_is_warned_about():
+    from uvbake.cli.unwrap import _budget_warnings
+
+    rep = dict(options=dict(max_stretch=1.5, guarantee=True), min_texel_share=0.5)
+    assert _budget_warnings(rep) == []                                  # 0.5 >= 1/2.25
+    rep["min_texel_share"] = 0.12
+    (w,) = _budget_warnings(rep)
+    assert "0.12" in w and "0.444" in w and "--max-stretch 1.5" in w
+    rep["options"]["guarantee"] = False                                  # --paper promises nothing
+    assert _budget_warnings(rep) == []

@@ -123,6 +123,25 @@ def test_a_rough_scan_at_one_chart_is_split_until_valid_within_the_default_caps(
     assert overlap_splits <= SPLITS_PER_CHART * rep["charts_input"]     # (their count may differ by a CPU's rounding)
 
 
+
+@pytest.mark.slow
+def test_a_chart_budget_on_a_rough_scan_keeps_the_distortion_budget_within_the_default_caps():
+    # the cow with noise at --max-stretch 1.5 --max-charts 2, alpha 0: 39 large charts enter the solve and
+    # need about 280 distortion splits; four per chart (156, at least 256) left a triangle at 0.12 of its
+    # share against the budget's 1/1.5^2 = 0.44. The cap is now also one split per 8 triangles
+    from uvbake.atlas.guarantee import TRIANGLES_PER_SPLIT
+    from uvbake.io import load_mesh
+
+    from conftest import shared_mesh
+
+    m = load_mesh(shared_mesh("cow.off"))
+    V = m.V + 0.003 * np.linalg.norm(np.ptp(m.V, axis=0)) * np.random.default_rng(1).standard_normal(m.V.shape)
+    res = uvbake.unwrap((V, m.F), alpha=0.0, max_stretch=1.5, max_charts=2, texture_size_px=256)
+    rep = res.report
+    distortion = sum(s["reason"] in ("starved", "sheared") for s in rep["splits"])
+    assert rep["valid"] and rep["min_texel_share"] >= 1 / 1.5 ** 2 - 1e-9
+    assert distortion <= len(m.F) // TRIANGLES_PER_SPLIT
+
 def test_a_chart_whose_hole_image_runs_counter_clockwise_is_not_proven_overlap_free():
     # every triangle positive and both boundary loops simple and disjoint, yet the hole's image runs
     # counter-clockwise: the chart lies on both sides of it and covers the hole twice (a part of the cow

@@ -467,6 +467,11 @@ MIN_SPLITS = 256
 #: MIN_SPLITS): a noisy fandisk at --max-charts 1 needed 558 overlap splits and about 600 distortion ones
 #: for 558 charts, past the one per chart allowed before.
 SPLITS_PER_CHART = 4
+#: ... and at least one per this many triangles: with a chart budget few, large charts enter the solve
+#: (a noisy cow at --max-stretch 1.5 --max-charts 2, alpha 0: 39 charts, 5,804 triangles) and needed
+#: 283 distortion splits, over the 256 four per chart allowed, which left triangles at 0.12 of their
+#: share against the budget's 0.44 (docs/decisions/atlas.md, tenth session).
+TRIANGLES_PER_SPLIT = 8
 
 
 def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *, max_stretch: float,
@@ -478,7 +483,8 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     sheets are split apart, and only the parts are solved again, from the parent's map. Rounds and
     splits are bounded by counts, never by time: every round splits at least one chart, so the
     splits' caps bound the rounds too (``max_splits`` for each kind; None: SPLITS_PER_CHART per chart
-    entering the solve, at least MIN_SPLITS; ``max_rounds``, None: no other
+    entering the solve or one per TRIANGLES_PER_SPLIT triangles, at least MIN_SPLITS; ``max_rounds``,
+    None: no other
     bound; docs/decisions/atlas.md, eighth session). Only the charts that changed in a round are
     checked in the next.
 
@@ -487,8 +493,11 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     solve and conformal map takes each pinch of a chart as one vertex."""
     note = note or (lambda stage, done, total: None)
     charts, starts = list(charts), list(starts)
-    # four splits per chart, at least MIN_SPLITS: a fixed cap left rough scans of many charts invalid
-    max_splits = max(MIN_SPLITS, SPLITS_PER_CHART * len(charts)) if max_splits is None else max_splits
+    # four splits per chart, one per eight triangles, at least MIN_SPLITS: a fixed cap left rough scans
+    # of many charts invalid
+    if max_splits is None:
+        triangles = sum(len(c.F) for c in charts)
+        max_splits = max(MIN_SPLITS, SPLITS_PER_CHART * len(charts), triangles // TRIANGLES_PER_SPLIT)
     results = _solve_flip_free(charts, starts, options, workers, lambda d, n, r: note("solve", d, n), pinch_keys)
     splits: list[dict] = []
     todo = list(range(len(charts)))

@@ -162,8 +162,8 @@ def unwrap(source: Any, *, alpha: float = DEFAULTS.alpha, init: str = DEFAULTS.i
         collapses triangles (the guarantee's splits still happen).
     max_splits : int, optional
         Cap on the guarantee's splits of each kind, distortion (starved, sheared) and validity (flips,
-        overlaps) (default: four per chart entering the solve, at least 256); past it the remaining
-        invalid charts are reported, not hidden.
+        overlaps) (default: four per chart entering the solve or one per 8 triangles, whichever is
+        more, at least 256); past it the remaining invalid charts are reported, not hidden.
     workers : int, optional
         Charts solved in parallel threads; the result does not depend on it.
     progress : callable, optional

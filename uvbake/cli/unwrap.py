@@ -366,7 +366,7 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
         print(f"uvbake: note: --max-charts {budget} not kept: {rep['charts_final']} charts ({rep['charts_input']} from "
               f"charting" + (f"; split where charts {split}" if split else "") + "); a valid atlas comes first",
               file=sys.stderr)
-    for w in (rep.get("repair") or {}).get("warnings", []):
+    for w in (rep.get("repair") or {}).get("warnings", []) + _budget_warnings(rep):
         print(f"uvbake: warning: {w}", file=sys.stderr)
     for c in rep["charts"]:
         if c["converged"]:
@@ -379,6 +379,21 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
             print(f"uvbake: warning: {c['name']} stopped before convergence ({c['stop_reason']}, "
                   f"|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations); raise --max-iter",
                   file=sys.stderr)
+
+
+def _budget_warnings(rep: dict[str, Any]) -> list[str]:
+    """The distortion budget's promise, checked on the finished atlas: no triangle below 1/S^2 of its fair
+    texel share (with the guarantee; only the guarantee's split cap can leave one)."""
+    opts = rep.get("options", {})
+    share = rep.get("min_texel_share")
+    if not opts.get("guarantee") or opts.get("max_stretch") is None or share is None:
+        return []
+    floor = 1.0 / float(opts["max_stretch"]) ** 2
+    if share >= floor * (1 - 1e-9):
+        return []
+    return [f"the distortion budget is not kept: a triangle has {share:.3g} of its fair texel share, under "
+            f"1/S^2 = {floor:.3g} for --max-stretch {opts['max_stretch']:g} (the guarantee's split cap was "
+            f"reached); allow more charts (--max-charts) or a looser --max-stretch"]
 
 
 def certificate_summary(charts: list[dict[str, Any]]) -> str:
