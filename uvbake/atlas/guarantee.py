@@ -484,9 +484,8 @@ def solve_valid(charts: list[Chart], starts: list[np.ndarray], options: dict, *,
     splits are bounded by counts, never by time: every round splits at least one chart, so the
     splits' caps bound the rounds too (``max_splits`` for each kind; None: SPLITS_PER_CHART per chart
     entering the solve or one per TRIANGLES_PER_SPLIT triangles, at least MIN_SPLITS; ``max_rounds``,
-    None: no other
-    bound; docs/decisions/atlas.md, eighth session). Only the charts that changed in a round are
-    checked in the next.
+    None: no other bound; docs/decisions/atlas.md, eighth and tenth sessions). Only the charts that
+    changed in a round are checked in the next.
 
     Returns (charts, results, splits). ``note(stage, done, total)`` is called per solved chart.
     ``pinch_keys``: per mesh vertex (:func:`uvbake.flatten.pinches.repair_copies`), or None: every

@@ -89,7 +89,7 @@ class SolveResult:
     iterations, evaluations : int
         Iterations (LM: factorisations; L-BFGS: improving evaluations) and F+gradient evaluations.
     converged : bool
-        grad_norm < tol.
+        grad_norm < tol, or F at its floor (``Status.AT_FLOOR``, alpha = 1).
     history : (k,) float array
         F at the start and after every iteration.
     status : Status
@@ -136,7 +136,8 @@ class ParamResult:
     iterations : int
         Solver iterations (for LM: factorisations, rejected steps included).
     converged : bool
-        True when grad_norm fell under the tolerance.
+        True when grad_norm fell under the tolerance, or F reached its floor (alpha = 1: every
+        triangle's area within :data:`uvbake.flatten.energy.FLOOR_TOL` of its own).
     n_flipped : int
         Triangles whose Jacobian determinant is <= 0 (flipped or collapsed).
     history : (k,) float array
