@@ -172,8 +172,19 @@ def test_too_many_pieces_are_refused_before_any_work_with_the_reason(monkeypatch
 
     monkeypatch.setattr("uvbake.atlas.charting.make_charts", no_charts)
     V, F = _soup(pipeline.MAX_PIECES + 1)
-    with pytest.raises(uvbake.InputError, match=f"{pipeline.MAX_PIECES + 1} separate pieces"):
+    with pytest.raises(uvbake.InputError, match=f"{pipeline.MAX_PIECES + 1} separate pieces") as err:
         unwrap((V, F))
+    assert "labels" not in str(err.value)
+    # a connected grid whose every quad has a label of its own: the labels are named as a cause, and
+    # OBJ materials with the option that ignores them (the CLI's words: --ignore-materials)
+    from uvbake.cli.common import cli_words
+
+    n = 80
+    V, F = grid(n + 1, n + 1)
+    V = np.column_stack([V, np.zeros(len(V))])
+    with pytest.raises(uvbake.InputError, match=f"{n * n} separate pieces") as err:
+        unwrap((V, F), face_labels=np.arange(len(F)) % (n * n))      # each quad: its two triangles
+    assert "coarser face labels" in str(err.value) and "--ignore-materials" in cli_words(str(err.value))
 
 
 @pytest.mark.parametrize("scale", [2.0 ** 990, 1e300, 1e-300])

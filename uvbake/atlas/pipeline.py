@@ -303,9 +303,11 @@ def _stage_load(run, source):
     check_cancelled()
     n_pieces = _count_pieces(run.F, len(run.V), run.labels)
     if n_pieces > MAX_PIECES:
+        labels = "" if run.labels is None else \
+            "give coarser face labels (for an OBJ file's materials: materials=False), "
         raise InputError(f"{run.source_name}: the mesh is {n_pieces} separate pieces, which would be at least "
                          f"{n_pieces} charts; uvbake unwraps at most {MAX_PIECES} pieces (none is dropped "
-                         "silently); weld coincident vertices (weld=True), or remove the small pieces first")
+                         f"silently); {labels}weld coincident vertices (weld=True), or remove the small pieces first")
 
 
 def _stage_charts(run):

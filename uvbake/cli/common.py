@@ -41,7 +41,7 @@ class ArgumentParser(argparse.ArgumentParser):
 FLAGS = {"texture_size_px": "--texture-size", "gutter_px": "--gutter", "texel_density": "--texel-density",
          "mip_levels": "--mip-levels", "max_stretch": "--max-stretch", "max_charts": "--max-charts",
          "max_iter": "--max-iter", "timeout_per_asset_s": "--timeout-per-asset", "preview_size_px": "--preview-size",
-         "auto_cut=False": "--no-auto-cut", "weld=True": "--weld"}
+         "auto_cut=False": "--no-auto-cut", "weld=True": "--weld", "materials=False": "--ignore-materials"}
 
 
 def cli_words(message: str) -> str:
