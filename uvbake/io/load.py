@@ -360,7 +360,7 @@ def _read_own_ply(path: Path) -> MeshData | None:
 def _wide_ascii_colours(path: Path) -> bool:
     """Whether ``path`` is an ASCII PLY whose vertex colours are stored wider than 8 bits."""
     try:
-        fmt, elements, _ = _ply_header(path)
+        fmt, elements, _ = _ply_header(path, body=False)     # the header only: most ASCII files are 8-bit
     except (ValueError, KeyError, IndexError):
         return False
     props = {name: dtype for el, _, plist in elements if el == "vertex" for name, dtype, item in plist if item is None}

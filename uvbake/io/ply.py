@@ -32,8 +32,9 @@ def read_ply_elements(path: str | os.PathLike[str]) -> dict:
     return _ply_binary(body, elements, "<" if fmt == "binary_little_endian" else ">")
 
 
-def _ply_header(path):
-    """``(format, [(element, count, [(property, dtype, list item dtype or None)]), body bytes)``."""
+def _ply_header(path, body=True):
+    """``(format, [(element, count, [(property, dtype, list item dtype or None)]), body bytes)``; with
+    ``body=False`` the file is read only up to its header (the body is ``b""``)."""
     with open(path, "rb") as f:
         lines: list[str] = []
         while True:
@@ -46,7 +47,7 @@ def _ply_header(path):
             lines.append(line)
             if line == "end_header":
                 break
-        body = f.read()
+        data = f.read() if body else b""
     if not lines or lines[0] != "ply":
         raise ValueError("does not start with 'ply'")
     fmt = None
@@ -64,7 +65,7 @@ def _ply_header(path):
                 elements[-1][2].append((parts[2], _PLY_TYPES[parts[1]], None))
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise ValueError(f"unknown format {fmt!r}")
-    return fmt, elements, body
+    return fmt, elements, data
 
 
 def check_ply_complete(path: str | os.PathLike[str], name: str) -> None:
