@@ -46,6 +46,7 @@ MAX_ESCAPES = 20       # saddle escapes per solve
 NEWTON_FIRST = False   # after a full interior step with a good gain, try the true H + mu I first (measured: not adopted)
 REUSE_CG = 10          # keep M for the next step after a Newton-like step that took <= REUSE_CG CG iterations
 MODEL = "true"         # the model's Hessian: "true" H, or "projected" H+ (measured: projected Newton)
+UNSHIFT_PINNED = True  # pinned (alpha = 0): drop mu once CG runs out against it (a chart of slivers)
 # F stalled at rounding: it fell by at most STALL_RTOL |F| over the last STALL iterations (a bent tube of
 # sliver triangles, 35k faces: F exact to 14 digits after 10 iterations, its gradient norm held at 2e-6 by
 # rounding, 1000 iterations and 130 s CPU to max_iter)
@@ -122,7 +123,8 @@ class _State:
         self.solver = solver or make_solver(self.H, method=linear_solver)
         self.pinned = bool(energy.fixed.any())
         self.newton, self.reuse, self.M = False, False, self.Hp
-        self.mu = SHIFT * _diagonal_scale(np.abs(self.H.data[energy.diagonal_slots]))
+        self.mu_floor = SHIFT * _diagonal_scale(np.abs(self.H.data[energy.diagonal_slots]))
+        self.mu, self.shift_needed = self.mu_floor, False
 
     def move(self, x):
         self.x = x
@@ -155,7 +157,8 @@ class _State:
         try:
             self.solver.factor(self.Hp, self.mu)
         except NotPositiveDefinite:                # rounding on a nearly singular H+: more shift
-            self.mu *= 100.0
+            self.shift_needed = self.shift_needed or self.mu == 0.0
+            self.mu = max(self.mu * 100.0, self.mu_floor)
             self.history.append(self.f)
             return False
         self.M, self.factored = self.Hp, True
@@ -192,7 +195,12 @@ class _State:
         good = t == 1.0 and not boundary and rho > 0.75
         self.newton = NEWTON_FIRST and good
         self.reuse = good and cg <= REUSE_CG
-        return _radius(delta, t, rho, boundary, self.m_norm(p) if 0 < t < 1 else 0.0)
+        radius = _radius(delta, t, rho, boundary, self.m_norm(p) if 0 < t < 1 else 0.0)
+        if UNSHIFT_PINNED and cg >= MAX_CG and self.pinned and not self.shift_needed:
+            # pinned (alpha = 0) there is no gauge to regularise, and CG ran out against the shift: on a
+            # chart of slivers mu swamps the low modes (docs/decisions/solver.md); H+ alone from now on
+            self.mu = 0.0
+        return radius
 
     def m_norm(self, p):
         return float(np.sqrt(p @ (self.M @ p) + self.mu * (p @ p)))
