@@ -184,9 +184,38 @@ def test_the_certificate_line_counts_charts_at_the_floor_as_minima():
     assert certificate_summary([floor, floor]) == "local minimum: yes, global (F at its floor 0)"
     assert certificate_summary([floor, dict(is_local_minimum=True, lambda_min=0.25)]) == \
         "local minimum: yes, lambda_min = 0.25"
-    assert certificate_summary([floor, dict(is_local_minimum=False, lambda_min=-0.5)]) == \
-        "local minimum: no (1 of 2 charts not a certified minimum), lambda_min = -0.5"
+    assert certificate_summary([floor, dict(is_local_minimum=False, lambda_min=-0.5, converged=True)]) == \
+        "local minimum: no (1 of 2 charts: 1 at a saddle), lambda_min = -0.5"
     assert certificate_summary([dict(is_local_minimum=None, lambda_min=None)]) == "local minimum: not certified"
+
+
+def test_charts_stopped_early_are_not_certified_and_get_the_advice_their_stop_calls_for():
+    # a solve stopped before the gradient test is not a certified minimum, which is not "no": its
+    # Hessian may well be positive definite (lambda_min > 0)
+    stopped = dict(is_local_minimum=False, lambda_min=3e-4, converged=False)
+    ok = dict(is_local_minimum=True, lambda_min=0.25, converged=True)
+    assert certificate_summary([ok, stopped, stopped]) == \
+        "local minimum: not certified (2 of 3 charts: 2 stopped before the gradient test), lambda_min = 0.0003"
+    saddle = dict(is_local_minimum=False, lambda_min=-0.5, converged=True)
+    assert certificate_summary([saddle, stopped]).startswith("local minimum: no (2 of 2 charts: 1 at a saddle, 1 stopped")
+    from uvbake.cli.unwrap import _unconverged
+
+    chart = dict(name="chart 3", grad_norm=4.1e-7, iterations=23)
+    # only a solve cut at its iteration or evaluation limit is told to raise --max-iter
+    assert _unconverged(chart | dict(stop_reason="max_iter")).endswith("; raise --max-iter")
+    assert _unconverged(chart | dict(stop_reason="max_eval")).startswith("warning: chart 3 stopped before convergence")
+    for reason in ("step too small", "roundoff limited"):
+        line = _unconverged(chart | dict(stop_reason=reason))
+        assert line.startswith("note: chart 3 stopped where") and "--max-iter" not in line and "4.10e-07" in line
+    assert "--max-iter" not in _unconverged(chart | dict(stop_reason="damping diverged"))
+    # one chart's own line says the same
+    from uvbake.flatten.solve import parameterize
+
+    from meshgen import bumpy_disk
+
+    r = parameterize(*bumpy_disk(), alpha=0.5, max_iter=1)
+    assert not r.converged and r.is_local_minimum is False
+    assert r.certificate_line().startswith("local minimum: not certified (stopped before the gradient test)")
 
 
 def test_ignore_materials_lets_charts_span_them(tmp_path):

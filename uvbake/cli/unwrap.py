@@ -369,16 +369,22 @@ def _summary(rep: dict[str, Any], alpha: float, written: list[Path]) -> None:
     for w in (rep.get("repair") or {}).get("warnings", []) + _budget_warnings(rep):
         print(f"uvbake: warning: {w}", file=sys.stderr)
     for c in rep["charts"]:
-        if c["converged"]:
-            continue
-        if c["stop_reason"] == "roundoff limited":
-            print(f"uvbake: note: {c['name']} stopped where rounding hides further decrease of the energy "
-                  f"(|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations; thin triangles limit it)",
-                  file=sys.stderr)
-        else:
-            print(f"uvbake: warning: {c['name']} stopped before convergence ({c['stop_reason']}, "
-                  f"|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations); raise --max-iter",
-                  file=sys.stderr)
+        if not c["converged"]:
+            print(f"uvbake: {_unconverged(c)}", file=sys.stderr)
+
+
+def _unconverged(c: dict[str, Any]) -> str:
+    """The line for a chart whose solve stopped before the gradient test, with the advice its stop calls
+    for: more iterations only help a solve cut at --max-iter."""
+    where = f"|grad| {c['grad_norm']:.2e} after {c['iterations']} iterations"
+    if c["stop_reason"] == "roundoff limited":
+        return (f"note: {c['name']} stopped where rounding hides further decrease of the energy ({where}; "
+                f"thin triangles limit it)")
+    if c["stop_reason"] == "step too small":
+        return (f"note: {c['name']} stopped where no step lowers the energy any further ({where}): rounding, "
+                f"or a triangle kept from folding over; more iterations would not help")
+    advice = "; raise --max-iter" if c["stop_reason"] in ("max_iter", "max_eval") else ""
+    return f"warning: {c['name']} stopped before convergence ({c['stop_reason']}, {where}){advice}"
 
 
 def _budget_warnings(rep: dict[str, Any]) -> list[str]:
@@ -402,8 +408,12 @@ def certificate_summary(charts: list[dict[str, Any]]) -> str:
     known = [c for c in charts if c.get("is_local_minimum") is not None]
     if not known:
         return "local minimum: not certified"
-    bad = sum(1 for c in known if c["is_local_minimum"] is False)
-    word = "yes" if bad == 0 else f"no ({bad} of {len(charts)} charts not a certified minimum)"
+    # not certified: a saddle (converged, negative curvature) or a solve stopped before the gradient test
+    saddles = sum(1 for c in known if c["is_local_minimum"] is False and c.get("converged", True))
+    stopped = sum(1 for c in known if c["is_local_minimum"] is False and not c.get("converged", True))
+    why = [f"{n} {w}" for n, w in ((saddles, "at a saddle"), (stopped, "stopped before the gradient test")) if n]
+    word = "yes" if not why else \
+        f"{'no' if saddles else 'not certified'} ({saddles + stopped} of {len(charts)} charts: {', '.join(why)})"
     # charts stopped at F's floor (alpha = 1) are global minima and carry no lambda_min
     lams = [c["lambda_min"] for c in known if c.get("lambda_min") is not None]
     return f"local minimum: {word}" + (f", lambda_min = {min(lams):.3g}" if lams else ", global (F at its floor 0)")

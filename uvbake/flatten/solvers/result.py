@@ -184,8 +184,9 @@ class ParamResult:
             return "local minimum: not certified"
         if self.status == Status.AT_FLOOR:
             return "local minimum: yes, global (F at its floor 0)"
-        word = "yes" if self.is_local_minimum else ("no (not converged)" if not self.converged else "no (saddle)")
-        return f"local minimum: {word}, lambda_min = {self.lambda_min:.3g}"
+        if not self.converged:                     # not "no": its Hessian may well be positive definite
+            return f"local minimum: not certified (stopped before the gradient test), lambda_min = {self.lambda_min:.3g}"
+        return f"local minimum: {'yes' if self.is_local_minimum else 'no (saddle)'}, lambda_min = {self.lambda_min:.3g}"
 
     def to_dict(self, *, with_uv: bool = False) -> dict[str, Any]:
         """JSON-ready summary (UVs left out unless asked)."""
