@@ -475,8 +475,9 @@ def _drop_specks(p: RepairResult, min_component_faces: int | None) -> None:
         p.actions.append({"kind": "drop_small_components", "count": int(small.sum()),
                           "faces": int(drop.sum()), "examples": _ex(p.face_index[drop]),
                           "min_component_faces": int(thr)})
-        p.warnings.append(f"dropped {int(small.sum())} small pieces (< {thr} triangles each, "
-                       f"{int(drop.sum())} triangles: {_list(p.face_index[drop])})")
+        n, k = int(small.sum()), int(drop.sum())
+        p.warnings.append(f"dropped {n} small piece{'s' * (n != 1)} (< {thr} triangles each, "
+                          f"{k} triangle{'s' * (k != 1)}: {_list(p.face_index[drop])})")
         p.F, p.face_index = F[~drop], p.face_index[~drop]
 
 
