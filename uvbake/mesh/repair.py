@@ -325,8 +325,8 @@ def _drop_nonfinite(p: RepairResult) -> None:
         if drop.any():
             p.actions.append({"kind": "drop_nonfinite_faces", "count": int(drop.sum()),
                               "examples": _ex(p.face_index[drop]), "vertices": _ex(np.flatnonzero(bad_v))})
-            p.warnings.append(f"dropped {int(drop.sum())} triangles with NaN/infinite vertex coordinates "
-                           f"(triangles {_list(p.face_index[drop])})")
+            p.warnings.append(f"dropped {_count(drop.sum(), 'triangle')} with NaN/infinite vertex coordinates "
+                              f"(triangles {_list(p.face_index[drop])})")
             p.F, p.face_index = p.F[~drop], p.face_index[~drop]
 
 
@@ -392,7 +392,7 @@ def _split_nonmanifold(p: RepairResult) -> None:
     if len(nm_edges):
         p.actions.append({"kind": "split_nonmanifold_edges", "count": int(len(nm_edges)),
                           "examples": [[int(a), int(b)] for a, b in vidx[nm_edges[:5]]]})
-        p.warnings.append(f"split {len(nm_edges)} non-manifold edges (edges "
+        p.warnings.append(f"split {_count(len(nm_edges), 'non-manifold edge')} (edges "
                        f"{', '.join(f'({a},{b})' for a, b in vidx[nm_edges[:5]])}) by detaching triangles")
     p.actions.append({"kind": "split_nonmanifold_vertices", "count": int(len(vmap) - n),
                       "examples": _ex(vidx[split_v])})
@@ -443,7 +443,7 @@ def _orient(p: RepairResult) -> None:
                              "Moebius-like strip); cut it there or give those triangles their own segment label")
         p.actions.append({"kind": "cut_nonorientable", "count": int(len(vfi)),
                           "examples": _ex(unique_sorted(fidx[vfi]))})
-        p.warnings.append(f"cut a non-orientable piece along {len(vfi)} edges (at triangles "
+        p.warnings.append(f"cut a non-orientable piece along {_count(len(vfi), 'edge')} (at triangles "
                        f"{_list(unique_sorted(fidx[vfi]))}) so it can be oriented")
         p.F, p.V, p.vertex_index, flip = G, p.V[vmap], p.vertex_index[vmap], flip2
     if flip.any():
@@ -475,10 +475,15 @@ def _drop_specks(p: RepairResult, min_component_faces: int | None) -> None:
         p.actions.append({"kind": "drop_small_components", "count": int(small.sum()),
                           "faces": int(drop.sum()), "examples": _ex(p.face_index[drop]),
                           "min_component_faces": int(thr)})
-        n, k = int(small.sum()), int(drop.sum())
-        p.warnings.append(f"dropped {n} small piece{'s' * (n != 1)} (< {thr} triangles each, "
-                          f"{k} triangle{'s' * (k != 1)}: {_list(p.face_index[drop])})")
+        p.warnings.append(f"dropped {_count(small.sum(), 'small piece')} (< {thr} triangles each, "
+                          f"{_count(drop.sum(), 'triangle')}: {_list(p.face_index[drop])})")
         p.F, p.face_index = F[~drop], p.face_index[~drop]
+
+
+def _count(n, noun: str) -> str:
+    """'1 edge', '3 edges': a count and its noun in the number it takes."""
+    n = int(n)
+    return f"{n} {noun}{'s' * (n != 1)}"
 
 
 def _drop_unreferenced(p: RepairResult) -> None:
