@@ -23,7 +23,7 @@ import numpy as np
 
 from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
-from uvbake.flatten.solvers.result import SolveResult, Status, final_status
+from uvbake.flatten.solvers.result import SolveResult, Status, final_status, stalled
 
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
@@ -105,6 +105,8 @@ def levenberg_marquardt(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: n
         accepted = s.take(step)
         lam, nu, lam_indef = _damping(lam, nu, lam_indef, step, accepted, lam_min)
         stop = s.stop_after(step, accepted, lam)
+        if stop == Status.MAX_ITER and stalled(s.history):
+            stop = Status.ROUNDOFF_LIMITED
         if s.gnorm < tol and s.escapes < MAX_ESCAPES and stop == Status.MAX_ITER:
             shift = s.second_order_test()
             lam, nu = (max(lam, shift), 2.0) if shift else (lam, nu)

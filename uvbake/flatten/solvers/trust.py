@@ -30,7 +30,7 @@ import numpy as np
 from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
-from uvbake.flatten.solvers.result import SolveResult, Status, final_status
+from uvbake.flatten.solvers.result import SolveResult, Status, final_status, stalled
 
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
@@ -47,11 +47,6 @@ NEWTON_FIRST = False   # after a full interior step with a good gain, try the tr
 REUSE_CG = 10          # keep M for the next step after a Newton-like step that took <= REUSE_CG CG iterations
 MODEL = "true"         # the model's Hessian: "true" H, or "projected" H+ (measured: projected Newton)
 UNSHIFT_PINNED = True  # pinned (alpha = 0): drop mu once CG runs out against it (a chart of slivers)
-# F stalled at rounding: it fell by at most STALL_RTOL |F| over the last STALL iterations (a bent tube of
-# sliver triangles, 35k faces: F exact to 14 digits after 10 iterations, its gradient norm held at 2e-6 by
-# rounding, 1000 iterations and 130 s CPU to max_iter)
-STALL = 20
-STALL_RTOL = 1e-12
 
 
 def _diagonal_scale(d):
@@ -232,11 +227,6 @@ def _step(state, delta, step_limit):
     return (p if np.all(np.isfinite(p)) else None), boundary, j
 
 
-def _stalled(history):
-    """Whether F fell by at most STALL_RTOL |F| over the last STALL iterations (rounding, not progress)."""
-    return len(history) > STALL and history[-STALL - 1] - history[-1] <= STALL_RTOL * abs(history[-1])
-
-
 def _radius(delta, t, rho, boundary, m_norm):
     """The trust radius after a trial step (``t`` the fraction of the step taken, 0 if none)."""
     if 0 < t < 1.0:                                # backtracked: the radius of the step taken
@@ -324,7 +314,7 @@ def trust_region(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarr
         s.n_eval += k
         delta = s.after_trial(delta, t, rho, boundary, p, j)
         stop = s.advance(t * p, delta)
-        if stop == Status.MAX_ITER and _stalled(s.history):
+        if stop == Status.MAX_ITER and stalled(s.history):
             stop = Status.ROUNDOFF_LIMITED
         if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=delta,
                                                   accepted=t > 0, reason=f"gain {rho:.3g}, {j} CG")):
