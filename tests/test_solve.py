@@ -3,6 +3,7 @@
 import dataclasses
 import multiprocessing
 import pickle
+import sys
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 
 import numpy as np
@@ -274,3 +275,42 @@ def test_one_blas_thread_limits_every_blas_and_rescans_only_after_an_import():
         finally:
             del sys.modules["_uvbake_probe"]
         assert _blas_threads() == before
+
+
+_OMP_PROBE = """
+import os, sys
+import numpy as np, scipy.sparse as sp
+from uvbake.flatten.solvers.linalg import CholmodSolver, cholmod_available
+assert cholmod_available()
+k = 160                                   # a grid's 2 x 25,600 unknowns, factored supernodal
+idx = np.arange(k * k).reshape(k, k)
+i = np.concatenate([idx[:, :-1].ravel(), idx[:-1, :].ravel()])
+j = np.concatenate([idx[:, 1:].ravel(), idx[1:, :].ravel()])
+A = sp.coo_matrix((np.ones(len(i)), (i, j)), shape=(k * k, k * k))
+A = A + A.T
+A = sp.kron(sp.identity(2), sp.diags(np.asarray(A.sum(1)).ravel() + 1.0) - A).tocsc()
+before = len(os.listdir("/proc/self/task"))
+s = CholmodSolver(A)
+s.factor(A, 0.0)
+print(len(os.listdir("/proc/self/task")) - before, os.environ.get("OMP_THREAD_LIMIT"))
+"""
+
+
+@pytest.mark.skipif(not cholmod_available() or not sys.platform.startswith("linux"),
+                    reason="needs scikit-sparse, and /proc for the thread count")
+@pytest.mark.parametrize("user_limit", [None, "3"])
+def test_cholmod_factors_without_an_openmp_team_and_leaves_the_environment_alone(user_limit):
+    """CHOLMOD 3's supernodal loops ask for a team of 4 OpenMP threads, past OMP_NUM_THREADS and
+    threadpoolctl; on two cores that doubled a factorisation's CPU. Its runtime is loaded with a thread
+    limit of 1, unless the user set one, and the environment is left as the user had it."""
+    import os
+    import subprocess
+
+    env = {k: v for k, v in os.environ.items() if k != "OMP_THREAD_LIMIT"}
+    if user_limit is not None:
+        env["OMP_THREAD_LIMIT"] = user_limit
+    out = subprocess.run([sys.executable, "-c", _OMP_PROBE], env=env, capture_output=True, text=True, check=True)
+    new_threads, seen = out.stdout.split()
+    assert seen == str(user_limit)                      # "None" when the user had not set it
+    if user_limit is None:
+        assert new_threads == "0"

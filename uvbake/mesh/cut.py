@@ -154,14 +154,15 @@ def _bfs_field(m, fi, fj, w, start):
 
 def _factor(A):
     """A solve function for the SPD sparse matrix A: CHOLMOD when installed, SuperLU otherwise."""
-    try:
+    from uvbake.flatten.solvers.linalg import cholmod_available
+
+    if cholmod_available():
         from sksparse.cholmod import cholesky
 
         return cholesky(A.tocsc())
-    except ImportError:
-        from scipy.sparse.linalg import splu
+    from scipy.sparse.linalg import splu
 
-        return splu(A.tocsc(), permc_spec="COLAMD").solve
+    return splu(A.tocsc(), permc_spec="COLAMD").solve
 
 
 #: Pieces of at most this many triangles get their Fiedler vector from a dense eigensolver (one LAPACK

@@ -12,6 +12,7 @@ and docs/decisions/linear-solvers.md.
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 from collections.abc import Callable, Iterator
 
@@ -39,12 +40,34 @@ class NotPositiveDefinite(Exception):
 
 
 def cholmod_available() -> bool:
-    """Whether scikit-sparse's CHOLMOD can be imported (the optional ``cholmod`` extra)."""
+    """Whether scikit-sparse's CHOLMOD can be imported (the optional ``cholmod`` extra). The first call
+    imports it (every module of the package asks here first), with OpenMP held to one thread."""
+    if "sksparse.cholmod" in sys.modules:
+        return True
     try:
-        import sksparse.cholmod  # noqa: F401
+        _import_cholmod()
     except ImportError:
         return False
     return True
+
+
+def _import_cholmod() -> None:
+    """Import CHOLMOD with OMP_THREAD_LIMIT=1 for the OpenMP runtime it loads, unless the user set it.
+
+    CHOLMOD 3's supernodal factorisation runs its scatter loops as a team of CHOLMOD_OMP_NUM_THREADS
+    (4) threads, a num_threads clause that neither OMP_NUM_THREADS nor threadpoolctl's limit reaches;
+    on two cores the team doubled the factorisation's CPU (docs/decisions/linear-solvers.md). The
+    runtime reads its thread limit once, when loaded, so the variable is set only around the import and
+    the process's environment is left as it was (a runtime already loaded keeps its own settings)."""
+    key = "OMP_THREAD_LIMIT"
+    ours = key not in os.environ
+    if ours:
+        os.environ[key] = "1"
+    try:
+        import sksparse.cholmod  # noqa: F401
+    finally:
+        if ours:
+            del os.environ[key]
 
 
 # (len(sys.modules) when made, threadpoolctl.ThreadpoolController): one_blas_thread's cached scan
@@ -98,6 +121,7 @@ def cholesky_lower(M: sp.spmatrix) -> object:
 
     Needs scikit-sparse (ImportError otherwise); returns its ``Factor`` (``solve_L``, ``apply_P``, ...).
     """
+    cholmod_available()
     from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
 
     try:
@@ -112,6 +136,7 @@ class CholmodSolver:
     name = "cholmod"
 
     def __init__(self, pattern: sp.spmatrix) -> None:
+        cholmod_available()                              # the first import holds OpenMP to one thread
         from sksparse.cholmod import analyze
 
         # AMD order. Below SUPERNODAL_FROM unknowns (most charts' Hessians) a simplicial L D L^T, the
