@@ -480,7 +480,7 @@ def _drop_specks(p: RepairResult, min_component_faces: int | None) -> None:
         p.F, p.face_index = F[~drop], p.face_index[~drop]
 
 
-def _count(n, noun: str) -> str:
+def _count(n: int | np.integer, noun: str) -> str:
     """'1 edge', '3 edges': a count and its noun in the number it takes."""
     n = int(n)
     return f"{n} {noun}{'s' * (n != 1)}"

@@ -6,6 +6,7 @@ As scipy's ``OptimizeResult``: an integer :class:`Status` says why a solve stopp
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
@@ -66,7 +67,7 @@ STALL = 20
 STALL_RTOL = 1e-12
 
 
-def stalled(history) -> bool:
+def stalled(history: Sequence[float] | np.ndarray) -> bool:
     """Whether F fell by at most STALL_RTOL |F| over the last STALL iterations (rounding, not progress)."""
     return len(history) > STALL and history[-STALL - 1] - history[-1] <= STALL_RTOL * abs(history[-1])
 
