@@ -15,7 +15,7 @@ from uvbake.flatten.solvers.trust import SHIFT, steihaug
 from uvbake.flatten.starts import initial_map
 from uvbake.mesh.arrays import unit_scale
 
-from meshgen import bumpy_disk
+from meshgen import bumpy_disk, grid
 
 
 def _eig(M):
@@ -258,15 +258,14 @@ def test_an_area_only_solve_stops_at_the_floor_of_f(step, monkeypatch):
 
 
 def _thin_row_grid(n=40, thin=1e-4, seed=0):
-    """A wavy n x n grid whose rows and columns are, three in ten, ``thin`` wide: rows of slivers
-    whose unit-weight angle terms have entries about 1/thin^2 times the rest."""
+    """meshgen's n x n grid, waved, with three in ten of its rows and columns ``thin`` wide: rows of
+    slivers whose unit-weight angle terms have entries about 1/thin^2 times the rest."""
     rng = np.random.default_rng(seed)
-    xs, ys = (np.cumsum(np.where(rng.random(n) < 0.3, thin, 1.0)) for _ in range(2))
-    X, Y = np.meshgrid(xs / xs[-1], ys / ys[-1], indexing="ij")
-    V = np.column_stack([X.ravel(), Y.ravel(), (0.3 * np.sin(2.5 * X) * np.cos(2 * Y)).ravel()])
-    idx = np.arange(n * n).reshape(n, n)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    return V, np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    st, F = grid(n, n)
+    even = np.linspace(0, 1, n)
+    X, Y = (np.interp(st[:, k], even, w / w[-1])
+            for k, w in enumerate(np.cumsum(np.where(rng.random(n) < 0.3, thin, 1.0)) for _ in range(2)))
+    return np.column_stack([X, Y, 0.3 * np.sin(2.5 * X) * np.cos(2 * Y)]), F
 
 
 def test_a_pinned_solve_drops_the_shift_that_stalls_cg_on_slivers(monkeypatch):
@@ -283,10 +282,11 @@ def test_a_pinned_solve_drops_the_shift_that_stalls_cg_on_slivers(monkeypatch):
     # the minimum within a few iterations, then the stall window (the gradient test sits under the
     # rounding of a matrix this ill-conditioned)
     assert r.iterations <= 2 * (5 + STALL) + 10 and r.n_flipped == 0
-    # the damped (LM) step reaches the same F; its damping floor (1e-15 max diag H) holds it at the same
-    # rounding, and like the trust region it stops when F has stalled (it ran all 1,000 iterations before)
+    # the damped (LM) step reaches the same F (1e-10 apart here; both stop at the rounding of a matrix
+    # this ill-conditioned, which another CPU moves, hence 1e-7, far under the 2e-5 of the slow run below);
+    # its damping floor (1e-15 max diag H) holds it at the same rounding, and like the trust region it stops when F has stalled (it ran all 1,000 iterations before)
     damped = parameterize(V, F, alpha=0.0, max_iter=1000, step="damped")
-    assert damped.iterations <= 4 * STALL and damped.energy == pytest.approx(r.energy, rel=1e-9)
+    assert damped.iterations <= 4 * STALL and damped.energy == pytest.approx(r.energy, rel=1e-7)
     monkeypatch.setattr(trust, "UNSHIFT_PINNED", False)
     slow = parameterize(V, F, alpha=0.0, max_iter=150)
     assert slow.stop_reason == "max_iter" and slow.energy > r.energy * (1 + 1e-8)
