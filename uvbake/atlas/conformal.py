@@ -56,7 +56,6 @@ def lscm_many(Vs: list, Fs: list, frames: list, keys: list | None = None) -> lis
         kept, F, back = welded(F, rep)
         V, cv = V[kept], cv[kept]
         nv = np.bincount(cv, minlength=k)
-        voff = np.cumsum(nv) - nv
         edges = _edges(F, len(V), mask=True)
     n = len(V)
     Q = np.concatenate([f[0] for f in frames])
@@ -70,34 +69,37 @@ def lscm_many(Vs: list, Fs: list, frames: list, keys: list | None = None) -> lis
     duv = (w * (b[:, :, None] * a[:, None, :] - a[:, :, None] * b[:, None, :])).ravel()
     # Huv is the Hessian of -4 x the signed UV area, a sum over boundary edges: its entries on interior
     # edges cancel between the edge's two triangles (camelhead: |Huv| 1 on the boundary, at most 7e-13
-    # inside). Kept as stored zeros they double the u-v block's pattern and the factorisation's fill.
+    # inside); they are left out (exact zeros), as rounding they would only add.
     # entry (k, l) of a triangle's 3x3 block lies on its edge k-l; the diagonal on no edge (unless a
     # triangle repeats a vertex: then the plain test below)
     he, _, bnd, alone = edges
     on = np.column_stack([alone.reshape(-1, 3), np.zeros(len(F), bool)])[:, _BLOCK_EDGE].reshape(-1)
     if (he[:, 0] == he[:, 1]).any():                     # a degenerate triangle: the plain test
         on = np.isin(np.minimum(r, c) * n + np.maximum(r, c), np.sort(bnd, axis=1) @ np.array([n, 1]))
-    uid = voff[cv] + np.arange(n)                        # chart by chart: its u's, then its v's
-    vid = uid + nv[cv]
-    rows = np.concatenate([uid[r], vid[r], uid[r[on]], vid[c[on]]])
-    cols = np.concatenate([uid[c], vid[c], vid[c[on]], uid[r[on]]])
-    data = np.concatenate([duu, duu, duv[on], duv[on]])
+    # the system in complex unknowns z = u + iv: per triangle D_angle = |(a + ib).z|^2, whose Hessian is the
+    # Hermitian 2w conj(c) c^T (c = a + ib): Re = Huu = Hvv, Im = -Huv. Half the unknowns of the real
+    # u/v system and a quarter of its entries; the factor does about half the work (docs/decisions/atlas-speed.md)
+    rows = np.concatenate([r, r[on]])
+    cols = np.concatenate([c, c[on]])
+    data = np.concatenate([duu, -1j * duv[on]])
     p, q = _farthest_pairs(V, unique_sorted(bnd), cv, k)
-    x = np.zeros(2 * n)
-    x[uid[q]] = [np.linalg.norm(V[j] - V[i]) for i, j in zip(p, q)]     # one per chart: lscm's own norm
-    # unknown k -> its index among the free ones (-1: pinned); the pinned ones move to the right side
-    index = np.arange(2 * n)
-    pinned = unique_sorted(np.concatenate([uid[p], uid[q], vid[p], vid[q]]))
+    x = np.zeros(n, complex)
+    x[q] = [np.linalg.norm(V[j] - V[i]) for i, j in zip(p, q)]     # one per chart: lscm's own norm
+    # vertex k -> its index among the free ones (-1: pinned); the pinned ones move to the right side
+    index = np.arange(n)
+    pinned = unique_sorted(np.concatenate([p, q]))
     index = index - np.searchsorted(pinned, index, side="right")
     index[pinned] = -1
     ri, ci = index[rows], index[cols]
     both = (ri >= 0) & (ci >= 0)
-    m = 2 * n - len(pinned)
+    m = n - len(pinned)
     A = sp.csc_matrix((data[both], (ri[both], ci[both])), shape=(m, m))
     right = (ri >= 0) & (ci < 0)
-    rhs = -np.bincount(ri[right], weights=data[right] * x[cols[right]], minlength=m)
+    w_right = data[right] * x[cols[right]]
+    rhs = -(np.bincount(ri[right], weights=w_right.real, minlength=m)
+            + 1j * np.bincount(ri[right], weights=w_right.imag, minlength=m))
     x[index >= 0] = _spd_solve_once(A, rhs, 2 * int(nv.max()))
-    uv = np.stack([x[uid], x[vid]], axis=1)
+    uv = np.stack([x.real, x.imag], axis=1)
     return pieces(uv if back is None else uv[back], ends)
 
 
