@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uvbake.flatten.energy import triangle_frames
+from uvbake.flatten.energy import corner_jacobians, triangle_frames
 from uvbake.mesh.arrays import signed_areas
 from uvbake.mesh.graph import components
 
@@ -77,7 +77,7 @@ def singular_values(V: np.ndarray, F: np.ndarray | None, uv: np.ndarray) -> tupl
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     _, Q, area = triangle_frames(V, F)
-    J = np.einsum("mkc,mkj->mcj", corners(uv, F), Q)     # as uvbake.flatten.energy.jacobians
+    J = corner_jacobians(corners(uv, F), Q)
     s = np.linalg.svd(J, compute_uv=False) if len(J) else np.zeros((0, 2))
     det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
     return s[:, 0], s[:, 1], det, area

@@ -74,25 +74,42 @@ def triangle_frames(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarra
         e1 = e12 / np.linalg.norm(e12, axis=1)[:, None]
         n = normal / dblarea[:, None]
     e2 = np.cross(n, e1)
-    C = X - X.mean(axis=1, keepdims=True)
-    R = np.stack([np.einsum("mkd,md->mk", C, e1), np.einsum("mkd,md->mk", C, e2)], axis=1)
-    RRt = np.einsum("mik,mjk->mij", R, R)             # (m,2,2)
-    det = RRt[:, 0, 0] * RRt[:, 1, 1] - RRt[:, 0, 1] * RRt[:, 1, 0]
-    inv = np.empty_like(RRt)
-    inv[:, 0, 0] = RRt[:, 1, 1]
-    inv[:, 1, 1] = RRt[:, 0, 0]
-    inv[:, 0, 1] = -RRt[:, 0, 1]
-    inv[:, 1, 0] = -RRt[:, 1, 0]
+    C = X - ((X[:, 0] + X[:, 1] + X[:, 2]) / 3.0)[:, None, :]      # about the centroid (X.mean's sums)
+    # sums of three products written out: numpy's einsum takes 10-20x longer on such short axes
+    # (docs/decisions/atlas-speed.md)
+    x = C[:, :, 0] * e1[:, 0, None] + C[:, :, 1] * e1[:, 1, None] + C[:, :, 2] * e1[:, 2, None]
+    y = C[:, :, 0] * e2[:, 0, None] + C[:, :, 1] * e2[:, 1, None] + C[:, :, 2] * e2[:, 2, None]
+    R = np.stack([x, y], axis=1)                      # (m,2,3)
+    xx, yy, xy = _dot3(x, x), _dot3(y, y), _dot3(x, y)  # R R^T
+    det = xx * yy - xy * xy
+    inv = np.empty((len(F), 2, 2))
+    inv[:, 0, 0] = yy
+    inv[:, 1, 1] = xx
+    inv[:, 0, 1] = -xy
+    inv[:, 1, 0] = -xy
     with np.errstate(invalid="ignore", divide="ignore"):
         inv /= det[:, None, None]
-    Q = np.einsum("mik,mij->mkj", R, inv)             # R^T (R R^T)^-1
+    Q = x[:, :, None] * inv[:, 0, None, :] + y[:, :, None] * inv[:, 1, None, :]      # R^T (R R^T)^-1
     return R, Q, 0.5 * dblarea
 
 
 def jacobians(Q: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Per-triangle Jacobians A (m,2,2) of the map with per-vertex UVs ``uv (n,2)``."""
-    U = uv[F]                                         # (m,3,2): corner k, coordinate c
-    return np.einsum("mkc,mkj->mcj", U, Q)
+    return corner_jacobians(uv[F], Q)
+
+
+def corner_jacobians(U: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """Per-triangle Jacobians A (m,2,2) of the map with per-corner UVs ``U (m,3,2)`` (corner k, coordinate c)."""
+    A = np.empty((len(U), 2, 2))
+    for c in range(2):                                # A[c, j] = sum_k U[k, c] Q[k, j], as DistortionEnergy's terms
+        for j in range(2):
+            A[:, c, j] = _dot3(U[:, :, c], Q[:, :, j])
+    return A
+
+
+def _dot3(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of two (m,3) arrays, summed in one fixed order (x0 y0 + x1 y1) + x2 y2."""
+    return x[:, 0] * y[:, 0] + x[:, 1] * y[:, 1] + x[:, 2] * y[:, 2]
 
 
 class DistortionEnergy:
@@ -251,10 +268,8 @@ class DistortionEnergy:
     def _terms(self, uv):
         U = uv[self.F]                                                         # (m,3,2)
         u, v = U[:, :, 0], U[:, :, 1]
-        A11 = np.einsum("mk,mk->m", self.a, u)
-        A12 = np.einsum("mk,mk->m", self.b, u)
-        A21 = np.einsum("mk,mk->m", self.a, v)
-        A22 = np.einsum("mk,mk->m", self.b, v)
+        A11, A12 = _dot3(u, self.a), _dot3(u, self.b)     # as jacobians(), product for product
+        A21, A22 = _dot3(v, self.a), _dot3(v, self.b)
         return A11, A12, A21, A22
 
     def per_triangle(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
