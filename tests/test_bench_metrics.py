@@ -254,3 +254,24 @@ def test_distortions_of_many_charts_at_once_are_each_charts_own():
             else:
                 assert d[key] == pytest.approx(a, rel=1e-12, abs=0)
     assert np.isinf(together[4]["angle_distortion_mean"]) and np.isfinite(together[2]["angle_distortion_mean"])
+
+
+def test_singular_values_in_closed_form_are_the_svds():
+    # metrics.singular_values takes a 2 x 2 Jacobian's singular values in closed form; they must be
+    # LAPACK's to rounding on random maps of every scale, mirrored ones, a collapsed and a zero map
+    from uvbake.flatten.energy import jacobians, triangle_frames
+
+    V, F = grid(nx=7, ny=5, z=lambda x, y: 0.3 * np.sin(x) * np.cos(y))
+    _, Q, _ = triangle_frames(V, F)
+    rng = np.random.default_rng(4)
+    for scale in (1e-9, 1.0, 1e9):
+        uv = rng.normal(size=(len(V), 2)) * scale
+        uv[F[0]] = [[0, 0], [1, 1], [2, 2]]                     # one collapsed triangle (rank 1)
+        uv[F[-1]] = 0.0                                          # one zero map (F[-1] shares no vertex of F[0])
+        s1, s2, det, _ = metrics.singular_values(V, F, uv)
+        ref = np.linalg.svd(jacobians(Q, F, uv), compute_uv=False)
+        assert np.all(s1 >= s2) and np.all(s2 >= 0)
+        assert np.allclose(s1, ref[:, 0], rtol=1e-13, atol=0)
+        assert np.allclose(s2, ref[:, 1], rtol=0, atol=1e-13 * ref[:, 0].max())
+        assert s2[0] <= 1e-13 * s1[0] and s1[-1] == 0 and s2[-1] == 0
+        assert np.allclose(s1 * s2, np.abs(det), rtol=1e-12, atol=0)

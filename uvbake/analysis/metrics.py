@@ -78,9 +78,14 @@ def singular_values(V: np.ndarray, F: np.ndarray | None, uv: np.ndarray) -> tupl
     F = np.asarray(F, dtype=np.int64)
     _, Q, area = triangle_frames(V, F)
     J = corner_jacobians(corners(uv, F), Q)
-    s = np.linalg.svd(J, compute_uv=False) if len(J) else np.zeros((0, 2))
-    det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-    return s[:, 0], s[:, 1], det, area
+    a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
+    det = a * d - b * c
+    # a 2 x 2 matrix's singular values in closed form (np.linalg.svd's LAPACK call per triangle took 11 ms on
+    # 14,000 triangles): s1 = |J's conformal part| + |its anti-conformal part|, s2 = |det| / s1
+    s1 = np.hypot(0.5 * (a + d), 0.5 * (c - b)) + np.hypot(0.5 * (a - d), 0.5 * (c + b))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s2 = np.where(s1 > 0, np.abs(det) / s1, np.where(np.isnan(s1), np.nan, 0.0))
+    return s1, s2, det, area
 
 
 def weighted_median(x: ArrayLike, w: ArrayLike) -> float:
