@@ -21,8 +21,8 @@ def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | 
     """Least squares conformal map (Levy et al. 2002), assembled and solved in one shot.
 
     The same map as :func:`uvbake.flatten.starts.lscm` (area-weighted conformal energy, the two farthest
-    boundary vertices pinned at their 3D distance), but assembled straight into the free unknowns'
-    u/v blocks and factored once with an AMD ordering: charting solves it for every candidate chart,
+    boundary vertices pinned at their 3D distance), but assembled straight into the free unknowns as
+    one Hermitian system in z = u + iv and factored once with an AMD ordering: charting solves it for every candidate chart,
     where building the solver's full energy object and nested-dissection analysis cost three
     quarters of the time. ``frames``: (Q, area) of :func:`uvbake.flatten.energy.triangle_frames`,
     when the caller has them. Returns uv (n,2)."""
@@ -33,8 +33,8 @@ def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | 
 
 def lscm_many(Vs: list, Fs: list, frames: list, keys: list | None = None) -> list:
     """:func:`lscm` of several charts as one block-diagonal system, one factorisation: each chart's
-    unknowns (its u's, then its v's) are a block of their own, with the entries, pins and right side
-    it has alone (a kit's hundred small parts paid a sparse assembly and a factorisation each).
+    unknowns (one complex z = u + iv per vertex) are a block of their own, with the entries, pins and
+    right side it has alone (a kit's hundred small parts paid a sparse assembly and a factorisation each).
     ``keys``: per chart, None or its vertices' pinch keys (:mod:`uvbake.flatten.pinches`): each
     pinch is one vertex of the solve, and its copies get its UV."""
     from uvbake.mesh.topology import _edges
