@@ -167,14 +167,21 @@ def _singular_values(V, F, uv):
     return np.linalg.svd(jacobians(Q, np.asarray(F), uv), compute_uv=False)
 
 
-def test_small_charts_solved_together_reach_each_charts_own_minimum():
+def test_small_charts_solved_together_reach_each_charts_own_minimum(monkeypatch):
     """F is a sum over triangles: the batch's minimiser is every chart's own (up to each chart's own
     rotation and translation), its gradient norm bounds each chart's, and its certificate's lambda_min
     is the least of the charts'."""
+    import uvbake.flatten.energy as energy_module
     from uvbake.flatten import joint
 
     charts, starts = _small_charts_with_starts()
     options = SolveOptions(alpha=0.5)
+    # the plane alone is developable: its conformal start is an isometry, F at its floor 0 (no certificate)
+    flat = solve_chart(charts[4], options, starts[4], checked=True)
+    assert flat.status == Status.AT_FLOOR and flat.is_local_minimum and np.isnan(flat.lambda_min)
+    assert flat.grad_norm < options.tol                      # below alpha 1 the gradient test still decides
+    assert flat.energy <= len(charts[4][1]) * energy_module.FLOOR_TOL ** 2
+    monkeypatch.setattr(energy_module, "FLOOR_TOL", 0.0)     # every chart certified, to compare the lambdas
     assert joint.joint_groups([(V, F, "c") for V, F in charts], options, starts) == [[0, 1, 2, 3, 4]]
     together = joint.solve_joint([(V, F, f"c{i}") for i, (V, F) in enumerate(charts)], options, starts)
     alone = [solve_chart((V, F), options, s, checked=True) for (V, F), s in zip(charts, starts)]
@@ -189,10 +196,12 @@ def test_small_charts_solved_together_reach_each_charts_own_minimum():
     assert together[0].lambda_min == pytest.approx(min(a.lambda_min for a in alone), rel=1e-5)
 
 
-def test_a_batch_small_enough_for_the_dense_certificate_sets_each_charts_gauge_aside():
+def test_a_batch_small_enough_for_the_dense_certificate_sets_each_charts_gauge_aside(monkeypatch):
+    import uvbake.flatten.energy as energy_module
     from uvbake.atlas.conformal import lscm
     from uvbake.flatten import joint
 
+    monkeypatch.setattr(energy_module, "FLOOR_TOL", 0.0)     # flat charts: certified, not stopped at F's floor
     charts = [plane(nu=3, nv=3, seed=s) for s in range(3)]                    # 9 vertices each: 54 unknowns
     starts = [lscm(V, F) for V, F in charts]
     options = SolveOptions(alpha=0.7)

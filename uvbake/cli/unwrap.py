@@ -414,7 +414,7 @@ def certificate_summary(charts: list[dict[str, Any]]) -> str:
     why = [f"{n} {w}" for n, w in ((saddles, "at a saddle"), (stopped, "stopped before the gradient test")) if n]
     word = "yes" if not why else \
         f"{'no' if saddles else 'not certified'} ({saddles + stopped} of {len(charts)} charts: {', '.join(why)})"
-    # charts stopped at F's floor (alpha = 1) are global minima and carry no lambda_min
+    # charts stopped at F's floor 0 (alpha = 1, or developable) are global minima and carry no lambda_min
     lams = [c["lambda_min"] for c in known if c.get("lambda_min") is not None]
     return f"local minimum: {word}" + (f", lambda_min = {min(lams):.3g}" if lams else ", global (F at its floor 0)")
 

@@ -19,7 +19,12 @@ which the Hessian is singular, so Newton's iterates reach it only linearly and t
 takes hundreds of iterations on a large chart. Since F >= 0, a map with every term
 w_t D_area <= FLOOR_TOL^2 has F within m FLOOR_TOL^2 of the global minimum; the solvers stop there
 (``at_floor``).
-At alpha < 1 the minima are isolated and the gradient test is cheap, so the rule is not used there.
+At alpha < 1 the minima are isolated and the gradient test is cheap, but F's floor is still 0 where a
+chart is developable (a cylinder's or a cone's chart, a box's faces: an isometry; at alpha 0 any
+conformal map): with every term (area where alpha > 0, angle where alpha < 1) within FLOOR_TOL^2 the
+map is near that global minimum, so once the gradient test passes no certificate is needed (the
+conformal start of such a chart is already there, and the certificate's factorisation and Lanczos
+cost more than the rest of its solve; uvbake.flatten.solvers.result.floor_reached).
 
 Per-triangle unknowns are ordered [u1 u2 u3 v1 v2 v3]; globally the map is the interleaved vector
 x = [u_0, v_0, u_1, v_1, ...] of length 2n, so vertex i owns entries 2i and 2i+1. D_angle is
@@ -146,7 +151,7 @@ class DistortionEnergy:
         m = len(self.F)
         self.w = np.ones(m) if weights is None else np.asarray(weights, dtype=np.float64)
         self.min_det = np.inf            # the least det A of the last value-and-gradient evaluation
-        self.at_floor = False            # ... and whether F was at its floor there (alpha = 1 only)
+        self.at_floor = False            # ... and whether F was at its floor 0 there (to FLOOR_TOL)
         # global unknown of each per-triangle local unknown [u1 u2 u3 v1 v2 v3]
         self.dof = np.concatenate([2 * self.F, 2 * self.F + 1], axis=1)      # (m,6)
         N = 2 * self.n
@@ -311,10 +316,9 @@ class DistortionEnergy:
         A11, A12, A21, A22 = self._terms(uv)
         det = A11 * A22 - A12 * A21
         self.min_det = float(det.min()) if len(det) else np.inf
-        self.at_floor = bool(self.alpha == 1.0 and len(det)
-                             and float(np.max(self.w * (det - 1.0) ** 2)) <= FLOOR_TOL * FLOOR_TOL)
         r1 = A11 - A22
         r2 = A12 + A21
+        self.at_floor = self._at_floor(det, r1, r2)
         al, w = self.alpha, self.w
         gdet = np.concatenate([self.a * A22[:, None] - self.b * A21[:, None],
                                self.b * A11[:, None] - self.a * A12[:, None]], axis=1)
@@ -332,6 +336,17 @@ class DistortionEnergy:
         H[:, :3, 3:] += Huv
         H[:, 3:, :3] += np.transpose(Huv, (0, 2, 1))
         return f, g, H
+
+    def _at_floor(self, det, r1, r2):
+        """Whether every triangle's weighted terms of F are within FLOOR_TOL^2 of 0: the area term where
+        alpha > 0, the angle term where alpha < 1 (F >= 0, so such a map is a global minimum to that
+        tolerance)."""
+        if not len(det):
+            return False
+        tol2 = FLOOR_TOL * FLOOR_TOL
+        if self.alpha > 0 and float(np.max(self.w * (det - 1.0) ** 2)) > tol2:
+            return False
+        return self.alpha == 1 or float(np.max(self.w * (r1 * r1 + r2 * r2))) <= tol2
 
     @property
     def _angle_data(self):

@@ -115,7 +115,7 @@ def solve_joint(items: Sequence[Item], options: SolveOptions, starts: Sequence[n
     f = _part_energies(energy, uvn, fpart, len(items))
     det = energy.determinants(uvn)
     flipped = np.bincount(fpart, weights=det <= 0, minlength=len(items)).astype(np.int64)
-    floor = info.status == Status.AT_FLOOR        # alpha = 1: a global minimum to FLOOR_TOL, nothing to certify
+    floor = info.status == Status.AT_FLOOR        # F at its floor 0: a global minimum to FLOOR_TOL, nothing to certify
     reached = (gnorm < options.tol) | floor
     cert = info.extra.get("certificate")
     if cert is None and options.certificate and not floor:

@@ -155,7 +155,7 @@ def solve_chart(chart: Chart | Sequence[Any], options: SolveOptions = DEFAULTS, 
         extra["continuation"] = dict(alpha=CONTINUATION_ALPHA, iterations=stage.iterations,
                                      energy=float(stage.energy), history=[float(h) for h in stage.history])
     det = energy.determinants(uvn)[:m]
-    floor = info.status == Status.AT_FLOOR    # alpha = 1: a global minimum to FLOOR_TOL, nothing to certify
+    floor = info.status == Status.AT_FLOOR    # F at its floor 0: a global minimum to FLOOR_TOL, nothing to certify
     converged = bool(grad_norm < options.tol or floor)
     cert = info.extra.get("certificate")      # the trust region's own second-order test, at uvn
     if cert is None and options.certificate and not floor:

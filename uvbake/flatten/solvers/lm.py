@@ -23,7 +23,7 @@ import numpy as np
 
 from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
-from uvbake.flatten.solvers.result import SolveResult, Status, final_status, stalled
+from uvbake.flatten.solvers.result import SolveResult, Status, final_status, floor_reached, stalled
 
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
@@ -89,12 +89,12 @@ def levenberg_marquardt(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: n
     lam_min = 1e-15 * max(s.hmax, 1e-300)
     nu, lam_indef = 2.0, 0.0
     stop = Status.MAX_ITER if np.isfinite(s.f) else Status.NON_FINITE_START
-    if stop == Status.MAX_ITER and max_iter > 0 and s.gnorm < tol:
-        # a start that is already stationary still gets the second-order test
+    if stop == Status.MAX_ITER and max_iter > 0 and s.gnorm < tol and not s.floor:
+        # a start that is already stationary still gets the second-order test (at F's floor: its global minimum)
         lam = max(lam, s.second_order_test())
     while s.it < max_iter and stop == Status.MAX_ITER:
         check_cancelled()                            # SIGINT/SIGTERM: stop within one iteration
-        if s.floor:
+        if floor_reached(s.floor, energy.alpha, s.gnorm, tol):
             stop = Status.AT_FLOOR
             break
         if s.gnorm < tol:
@@ -113,7 +113,7 @@ def levenberg_marquardt(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: n
         if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=lam,
                                                   accepted=accepted, reason=_reason(step))):
             stop = Status.CALLBACK if stop == Status.MAX_ITER else stop
-    stop, reached = final_status(stop, s.gnorm, tol, s.floor)
+    stop, reached = final_status(stop, s.gnorm, tol, floor_reached(s.floor, energy.alpha, s.gnorm, tol))
     return s.x, SolveResult(energy=float(s.f), grad_norm=s.gnorm, iterations=s.it, evaluations=s.n_eval,
                             converged=reached, history=np.asarray(s.history), status=stop,
                             solve_time_s=time.perf_counter() - t0,
@@ -167,7 +167,7 @@ class _LMState:
     def move(self, x):
         self.x = x
         self.f, self.g, _ = self.energy.evaluate(self.energy.to_uv(x, self.uv_fixed), out=self.H)
-        self.floor = self.energy.at_floor            # alpha = 1: a global minimum to FLOOR_TOL
+        self.floor = self.energy.at_floor            # F at its floor 0: a global minimum to FLOOR_TOL
         self.n_eval += 1
         self.gnorm = float(np.linalg.norm(self.g))
 

@@ -24,7 +24,7 @@ class Status(IntEnum):
     NON_FINITE_START = 4
     STEP_TOO_SMALL = 5
     DAMPING_DIVERGED = 6
-    AT_FLOOR = 7  # alpha = 1: every triangle's area within FLOOR_TOL of its own, F at its global minimum 0
+    AT_FLOOR = 7  # every term of F within FLOOR_TOL^2 of 0 (alpha = 1, or a developable chart): F's global minimum
     NLOPT_SUCCESS = 10
     NLOPT_STOPVAL = 11
     NLOPT_FTOL = 12
@@ -72,6 +72,14 @@ def stalled(history: Sequence[float] | np.ndarray) -> bool:
     return len(history) > STALL and history[-STALL - 1] - history[-1] <= STALL_RTOL * abs(history[-1])
 
 
+def floor_reached(floor: bool, alpha: float, grad_norm: float, tol: float) -> bool:
+    """Whether a second-order solve stops at F's floor 0 (``floor``: DistortionEnergy.at_floor at the
+    iterate). At alpha = 1 as soon as it is there: the minima form a continuum and the gradient test
+    comes only linearly. Below 1 the minimum is isolated and Newton reaches the gradient test in a step
+    or two, so the floor decides nothing but that the global minimum needs no certificate."""
+    return bool(floor) and (alpha == 1.0 or grad_norm < tol)
+
+
 def final_status(stop: Status, grad_norm: float, tol: float, floor: bool) -> tuple[Status, bool]:
     """A second-order backend's status at its end (a run cut at MAX_ITER that reached the tolerance or
     F's floor says so) and whether it reached a minimum."""
@@ -82,7 +90,7 @@ def final_status(stop: Status, grad_norm: float, tol: float, floor: bool) -> tup
 
 
 def minimum_flag(status: Status | None, converged: bool, cert: Any) -> bool | None:
-    """``is_local_minimum`` of a chart's result: True at F's floor (alpha = 1: a global minimum to
+    """``is_local_minimum`` of a chart's result: True at F's floor (a global minimum to
     :data:`uvbake.flatten.energy.FLOOR_TOL`, nothing to certify), else converged and certified; None
     without a certificate."""
     if status == Status.AT_FLOOR:
@@ -102,7 +110,7 @@ class SolveResult:
     iterations, evaluations : int
         Iterations (LM: factorisations; L-BFGS: improving evaluations) and F+gradient evaluations.
     converged : bool
-        grad_norm < tol, or F at its floor (``Status.AT_FLOOR``, alpha = 1).
+        grad_norm < tol, or F at its floor 0 (``Status.AT_FLOOR``: alpha = 1, or a developable chart).
     history : (k,) float array
         F at the start and after every iteration.
     status : Status
@@ -149,8 +157,9 @@ class ParamResult:
     iterations : int
         Solver iterations (for LM: factorisations, rejected steps included).
     converged : bool
-        True when grad_norm fell under the tolerance, or F reached its floor (alpha = 1: every
-        triangle's area within :data:`uvbake.flatten.energy.FLOOR_TOL` of its own).
+        True when grad_norm fell under the tolerance, or F reached its floor 0 (every triangle's terms
+        within :data:`uvbake.flatten.energy.FLOOR_TOL`: at alpha = 1 its area, on a developable chart an
+        isometry).
     n_flipped : int
         Triangles whose Jacobian determinant is <= 0 (flipped or collapsed).
     history : (k,) float array
@@ -166,7 +175,7 @@ class ParamResult:
         not computed.
     is_local_minimum : bool or None
         Converged and lambda_min non-negative (to 1e-9 of the Hessian's largest diagonal entry); True
-        with lambda_min NaN when the solve stopped at F's floor (``Status.AT_FLOOR``, alpha = 1), a
+        with lambda_min NaN when the solve stopped at F's floor (``Status.AT_FLOOR``), a
         global minimum to :data:`uvbake.flatten.energy.FLOOR_TOL`.
     """
 

@@ -30,7 +30,7 @@ import numpy as np
 from uvbake.cancel import check_cancelled
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import NotPositiveDefinite, make_solver
-from uvbake.flatten.solvers.result import SolveResult, Status, final_status, stalled
+from uvbake.flatten.solvers.result import SolveResult, Status, final_status, floor_reached, stalled
 
 if TYPE_CHECKING:
     from uvbake.flatten.energy import DistortionEnergy
@@ -125,7 +125,7 @@ class _State:
         self.x = x
         self.uv = self.energy.to_uv(x, self.uv_fixed)
         self.f, self.g, _ = self.energy.evaluate(self.uv, out=self.H)
-        self.floor = self.energy.at_floor          # alpha = 1: a global minimum to FLOOR_TOL
+        self.floor = self.energy.at_floor          # F at its floor 0: a global minimum to FLOOR_TOL
         self.n_eval += 1
         if self.step_limit is None and self.energy.min_det > 0:   # det A of this evaluation
             self.flip_free = x
@@ -292,7 +292,7 @@ def trust_region(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarr
     stop = Status.MAX_ITER if np.isfinite(s.f) else Status.NON_FINITE_START
     while s.it < max_iter and stop == Status.MAX_ITER:
         check_cancelled()                          # SIGINT/SIGTERM: stop within one iteration
-        if s.floor:
+        if floor_reached(s.floor, energy.alpha, s.gnorm, tol):
             stop = Status.AT_FLOOR
             break
         if s.gnorm < tol:
@@ -319,7 +319,7 @@ def trust_region(energy: DistortionEnergy, x0: np.ndarray, *, uv_fixed: np.ndarr
         if callback is not None and callback(dict(iteration=s.it, energy=s.f, grad_norm=s.gnorm, damping=delta,
                                                   accepted=t > 0, reason=f"gain {rho:.3g}, {j} CG")):
             stop = Status.CALLBACK if stop == Status.MAX_ITER else stop
-    stop, reached = final_status(stop, s.gnorm, tol, s.floor)
+    stop, reached = final_status(stop, s.gnorm, tol, floor_reached(s.floor, energy.alpha, s.gnorm, tol))
     return s.x, SolveResult(energy=float(s.f), grad_norm=s.gnorm, iterations=s.it, evaluations=s.n_eval,
                             converged=reached, history=np.asarray(s.history), status=stop,
                             solve_time_s=time.perf_counter() - t0,
