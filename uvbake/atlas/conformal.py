@@ -22,9 +22,9 @@ def lscm(V: ArrayLike, F: ArrayLike, *, frames: tuple[np.ndarray, np.ndarray] | 
 
     The same map as :func:`uvbake.flatten.starts.lscm` (area-weighted conformal energy, the two farthest
     boundary vertices pinned at their 3D distance), but assembled straight into the free unknowns as
-    one Hermitian system in z = u + iv and factored once with an AMD ordering: charting solves it for every candidate chart,
-    where building the solver's full energy object and nested-dissection analysis cost three
-    quarters of the time. ``frames``: (Q, area) of :func:`uvbake.flatten.energy.triangle_frames`,
+    one Hermitian system in z = u + iv and factored once with an AMD ordering: charting solves it for
+    every candidate chart, where building the solver's full energy object and nested-dissection
+    analysis cost three quarters of the time. ``frames``: (Q, area) of :func:`uvbake.flatten.energy.triangle_frames`,
     when the caller has them. Returns uv (n,2)."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)

@@ -318,7 +318,6 @@ class DistortionEnergy:
         self.min_det = float(det.min()) if len(det) else np.inf
         r1 = A11 - A22
         r2 = A12 + A21
-        self.at_floor = self._at_floor(det, r1, r2)
         al, w = self.alpha, self.w
         gdet = np.concatenate([self.a * A22[:, None] - self.b * A21[:, None],
                                self.b * A11[:, None] - self.a * A12[:, None]], axis=1)
@@ -326,6 +325,8 @@ class DistortionEnergy:
         cg = 2.0 * (1.0 - al) * w
         g = ca[:, None] * gdet + cg[:, None] * (r1[:, None] * self._g1 + r2[:, None] * self._g2)
         f = float(np.dot(w, al * (det - 1.0) ** 2 + (1.0 - al) * (r1 ** 2 + r2 ** 2)))
+        # F is a sum of m non-negative terms: over m FLOOR_TOL^2 some term is over FLOOR_TOL^2 (no pass needed)
+        self.at_floor = f <= len(det) * FLOOR_TOL * FLOOR_TOL and self._at_floor(det, r1, r2)
         if not hessian:
             return f, g, None
         # the part that varies: 2 alpha w gdet gdet^T + ca Hess(det) (Hess(det) lives in the u-v blocks);
