@@ -217,19 +217,22 @@ def test_any_finite_scale_gives_the_same_map(scale):
     assert rel < 1e-6
 
 
-@pytest.mark.parametrize("supernodal", [False, True])
-def test_the_chartings_one_shot_lscm_is_the_starts_lscm(supernodal, monkeypatch):
-    # uvbake.atlas.conformal.lscm assembles the conformal energy straight into the free unknowns and
-    # keeps the u-v coupling only on boundary edges; it must give the solver-built LSCM's map, on a
-    # disk and on a cut cylinder (its cut is boundary on both sides), with either of CHOLMOD's
-    # factorisations (supernodal: what charts of SUPERNODAL_FROM unknowns or more get)
+@pytest.mark.parametrize("factor", ["simplicial", "supernodal", "superlu"])
+def test_the_chartings_one_shot_lscm_is_the_starts_lscm(factor, monkeypatch):
+    # uvbake.atlas.conformal.lscm assembles the conformal energy straight into the free unknowns as one
+    # complex Hermitian system (u-v coupling on boundary edges only); it must give the solver-built
+    # real LSCM's map, on a disk and on a cut cylinder (its cut is boundary on both sides), with either
+    # of CHOLMOD's factorisations (supernodal: what charts of SUPERNODAL_FROM unknowns or more get) and
+    # with SuperLU (no CHOLMOD installed)
     import uvbake.flatten.solvers.linalg as linalg
     from uvbake.atlas.conformal import lscm as one_shot
 
-    if supernodal:
+    if factor == "supernodal":
         if not linalg.cholmod_available():
             pytest.skip("needs scikit-sparse (the cholmod extra)")
         monkeypatch.setattr(linalg, "SUPERNODAL_FROM", 1)
+    if factor == "superlu":
+        monkeypatch.setattr(linalg, "cholmod_available", lambda: False)
     for V, F in (bumpy_disk(n=8, seed=3), cut_cylinder()):
         a, b = lscm(V, F), one_shot(V, F)
         assert np.allclose(a, b, rtol=0, atol=1e-9 * np.ptp(a))
