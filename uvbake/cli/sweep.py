@@ -29,7 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--init", default=DEFAULTS.init, choices=INITS,
                    help=f"start map of every chart (default {DEFAULTS.init})")
     p.add_argument("--backend", default=DEFAULTS.backend, choices=BACKENDS,
-                   help="lm: Levenberg-Marquardt (default); lbfgs: nlopt L-BFGS")
+                   help="lm: full-Hessian Newton, trust-region steps (default); lbfgs: nlopt L-BFGS")
     p.add_argument("--warm-start", action="store_true",
                    help="start each alpha from the previous alpha's solution (reported per alpha)")
     p.add_argument("--tol", type=float, default=DEFAULTS.tol,

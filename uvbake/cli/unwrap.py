@@ -29,9 +29,10 @@ from uvbake.io.atomic import OutputSet
 from uvbake.views import LIGHTING
 
 DESCRIPTION = (
-    "Unwrap a mesh into a texture atlas: flatten every chart with the weighted area/angle\n"
-    "distortion minimiser (Levenberg-Marquardt), split charts until no triangle is flipped\n"
-    "or overlapping, pack them, bake a texture and write the textured mesh and a report.\n"
+    "Unwrap a mesh into a texture atlas: cut it into charts under a distortion budget\n"
+    "(--max-stretch) before solving, flatten every chart by minimising the weighted\n"
+    "area/angle distortion (second-order, full Hessian), prove that no triangle is flipped or\n"
+    "overlapping, pack the charts, bake a texture and write the textured mesh and a report.\n"
     "Charts come from a per-face segment label (PLY face property 'segment', 'label', ...;\n"
     "an OBJ file's materials), connected components and the distortion budget."
 )
@@ -94,7 +95,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"weight of area preservation in [0, 1]; 1 - alpha weighs angles (default {DEFAULTS.alpha})")
     g.add_argument("--init", default=DEFAULTS.init, choices=INITS, help=f"start map (default {DEFAULTS.init})")
     g.add_argument("--backend", default=DEFAULTS.backend, choices=BACKENDS,
-                   help="lm: Levenberg-Marquardt, full Hessian (default); lbfgs: nlopt L-BFGS")
+                   help="lm: full-Hessian Newton, trust-region steps (default; the paper's "
+                        "Levenberg-Marquardt damping is step='damped' in Python); lbfgs: nlopt L-BFGS")
     g.add_argument("--cross-check", action="store_true",
                    help="also solve every chart with the other backend and fail if they disagree")
     g.add_argument("--tol", type=_typed(float, 0.0, open_lo=True), default=DEFAULTS.tol,
