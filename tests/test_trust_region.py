@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import uvbake.flatten.energy as energy_module
-from uvbake.flatten.energy import FLOOR_TOL, DistortionEnergy, triangle_frames
+from uvbake.flatten.energy import FLOOR_TOL, DistortionEnergy, jacobians, triangle_frames
 from uvbake.flatten.solve import parameterize
 from uvbake.flatten.solvers.certificate import certify
 from uvbake.flatten.solvers.linalg import make_solver
@@ -253,8 +253,25 @@ def test_an_area_only_solve_stops_at_the_floor_of_f(step, monkeypatch):
     plain = parameterize(V, F, alpha=1.0, step=step)
     assert plain.status == Status.CONVERGED
     assert res.iterations < plain.iterations
-    # at alpha < 1 the minima are isolated and the rule is not used
+    # at alpha < 1 the minima are isolated: on a chart that is not developable the rule is never met
     assert parameterize(V, F, alpha=0.9, step=step).status == Status.CONVERGED
+
+
+@pytest.mark.parametrize("step", ["trust", "damped"])
+@pytest.mark.parametrize("init", ["lscm", "random"])
+def test_below_alpha_1_the_floor_spares_the_certificate_not_the_gradient_test(step, init):
+    # a cut cylinder is developable: F's floor 0 is its isometry. Below alpha 1 the solve still runs to
+    # the gradient test (from a random start too: stopping at FLOOR_TOL would leave it isometric only to
+    # 1e-3), then ends "at floor" without the second-order certificate
+    from meshgen import cut_cylinder
+
+    V, F = cut_cylinder()
+    res = parameterize(V, F, alpha=0.5, step=step, init=init, seed=3)
+    assert res.status == Status.AT_FLOOR and res.converged and res.is_local_minimum
+    assert res.grad_norm < 1e-8 and np.isnan(res.lambda_min) and "global" in res.certificate_line()
+    _, Q, _ = triangle_frames(V, F)
+    sv = np.linalg.svd(jacobians(Q, F, res.uv), compute_uv=False)
+    np.testing.assert_allclose(sv, 1.0, atol=1e-6)
 
 
 def _thin_row_grid(n=40, thin=1e-4, seed=0):
