@@ -80,8 +80,8 @@ def singular_values(V: np.ndarray, F: np.ndarray | None, uv: np.ndarray) -> tupl
     J = corner_jacobians(corners(uv, F), Q)
     a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
     det = a * d - b * c
-    # a 2 x 2 matrix's singular values in closed form (np.linalg.svd's LAPACK call per triangle took 11 ms on
-    # 14,000 triangles): s1 = |J's conformal part| + |its anti-conformal part|, s2 = |det| / s1
+    # a 2 x 2 matrix's singular values in closed form, not a LAPACK call per triangle
+    # (docs/decisions/atlas-speed.md): s1 = |J's conformal part| + |its anti-conformal part|, s2 = |det| / s1
     s1 = np.hypot(0.5 * (a + d), 0.5 * (c - b)) + np.hypot(0.5 * (a - d), 0.5 * (c + b))
     with np.errstate(invalid="ignore", divide="ignore"):
         s2 = np.where(s1 > 0, np.abs(det) / s1, np.where(np.isnan(s1), np.nan, 0.0))

@@ -132,8 +132,9 @@ def _frames(V, F):
 
 
 def _spd_solve_once(A, b, largest):
-    """One symmetric positive definite solve (CHOLMOD with AMD when installed, else SuperLU);
-    ``largest``: the unknowns of the largest chart (the system is block diagonal)."""
+    """One Hermitian positive definite solve (CHOLMOD with AMD when installed, else SuperLU);
+    ``largest``: the unknowns of the largest chart (the system is block diagonal), counted as real ones
+    (two per complex unknown), the count SUPERNODAL_FROM is measured in."""
     from uvbake.flatten.solvers.linalg import cholmod_available, cholmod_mode
 
     if cholmod_available():
