@@ -86,3 +86,86 @@ def test_flips_touching_boundaries_and_batches():
     wound, Fw = _spiral(1.3)
     batch = proven_injective([uv, flipped, wound, uv + 100.0], [F, F, Fw, F])
     assert batch.tolist() == [True, False, False, True]
+
+
+# ---- validate's use of the proof: faces of proven charts away from the other charts take no pair test
+
+def _annulus(n_theta=64, n_r=8, r0=0.5, r1=1.0):
+    """A closed ring of quads, r0 <= |uv| <= r1, every triangle positive."""
+    V, F = grid(n_theta + 1, n_r)
+    theta, r = 2 * np.pi * V[:, 0], r0 + (r1 - r0) * V[:, 1]
+    uv = np.column_stack([r * np.cos(theta), r * np.sin(theta)])
+    weld = np.arange(len(V))
+    last = V[:, 0] == 1.0
+    weld[last] = np.flatnonzero(V[:, 0] == 0.0)              # the seam's column is the first one
+    F = weld[F]
+    if np.sum(_dets(uv, F)) < 0:
+        uv[:, 1] *= -1
+    keep = np.unique(F)
+    new = np.zeros(len(V), np.int64)
+    new[keep] = np.arange(len(keep))
+    return uv[keep], new[F]
+
+
+def _square(n=24, size=1.0, at=(0.0, 0.0)):
+    V, F = grid(n, n, jitter=0.2, seed=n)
+    return V * size + np.asarray(at), F
+
+
+def _atlas(*charts):
+    """Per-corner UVs and chart ids of the charts laid as given."""
+    corners = np.concatenate([uv[F] for uv, F in charts])
+    ids = np.repeat(np.arange(len(charts)), [len(F) for _, F in charts])
+    return corners, ids
+
+
+LAYOUTS = {
+    "apart": lambda: _atlas(_square(), _square(at=(1.5, 0.0))),
+    "corner overlap": lambda: _atlas(_square(), _square(at=(0.7, 0.7))),
+    "edge to edge": lambda: _atlas(_square(), _square(at=(1.0, 0.0))),
+    "disk in the ring's hole": lambda: _atlas(_annulus(), _square(size=0.6, at=(-0.3, -0.3))),
+    "disk on the ring": lambda: _atlas(_annulus(), _square(size=0.2, at=(0.65, -0.1))),
+    "square over the hole": lambda: _atlas(_annulus(), _square(size=1.2, at=(-0.6, -0.6))),
+    "spiral beside a square": lambda: _atlas(_spiral(1.5, nu=200, nv=4), _square(at=(4.0, 0.0))),
+    "ring lying inside a square": lambda: _atlas(_square(size=3.0, at=(-1.5, -1.5)), _annulus()),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LAYOUTS))
+def test_pairs_with_the_boundary_proof_are_the_full_checks(name, monkeypatch):
+    import uvbake.validate.core as core
+    from uvbake.validate import validate
+
+    corners, ids = LAYOUTS[name]()
+    fast = validate(corners, chart_ids=ids, resolution_px=256)
+    fast_pairs = overlap_pairs(corners, None, chart_ids=ids)
+    monkeypatch.setattr(core, "pair_faces", lambda corners, vid, chart, n, dup, live: live)
+    full = validate(corners, chart_ids=ids, resolution_px=256)
+    np.testing.assert_array_equal(fast.overlap_pairs, full.overlap_pairs)
+    np.testing.assert_array_equal(fast_pairs, full.overlap_pairs)
+    np.testing.assert_array_equal(overlap_pairs(corners, None, chart_ids=ids, prove=False), full.overlap_pairs)
+    assert fast.valid == full.valid
+    assert fast.valid == (name in ("apart", "edge to edge", "disk in the ring's hole"))
+    assert fast.n_candidates <= full.n_candidates
+    if name in ("apart", "disk in the ring's hole", "spiral beside a square"):   # a proven chart away from the rest
+        assert fast.n_candidates < full.n_candidates
+
+
+def test_proven_charts_apart_take_no_pair_test():
+    from uvbake.validate import validate
+    from uvbake.validate.boundary import pair_faces
+    from uvbake.validate.candidates import _half_edges
+    from uvbake.validate.core import _prepare
+
+    corners, ids = LAYOUTS["apart"]()
+    report = validate(corners, chart_ids=ids, resolution_px=256)
+    assert report.valid and report.n_candidates == 0
+    _, vid, _ = _prepare(corners, None)
+    _, dup = _half_edges(vid)
+    live = np.ones(len(corners), bool)
+    assert not pair_faces(corners, vid, ids, 2, dup, live).any()
+    # a shared vertex between the charts (the same corner welded into both): neither is tried
+    corners[len(corners) // 2, 0] = corners[0, 0]
+    _, vid, _ = _prepare(corners, np.where(np.arange(len(corners))[:, None] == len(corners) // 2,
+                                           np.array([[0, 1, 2]]), np.arange(3 * len(corners)).reshape(-1, 3)))
+    assert pair_faces(corners, vid, ids, 2, _half_edges(vid)[1], live).all()

@@ -46,6 +46,7 @@ from numpy.typing import ArrayLike
 from uvbake.errors import InputError
 from uvbake.mesh.arrays import unique_sorted
 from uvbake.validate import budgets
+from uvbake.validate.boundary import pair_faces
 from uvbake.validate.candidates import (
     _bbox_pairs,
     _edge_components,
@@ -151,7 +152,8 @@ def validate(
 
     # ---- exact pass -----------------------------------------------------------------------------
     notes: list[str] = []
-    pairs, bbox_complete, n_cand, n_exact_pairs = _exact_pairs(corners, vid, sign, twin, dup, ~degenerate_mask)
+    pairs, bbox_complete, n_cand, n_exact_pairs = _exact_pairs(
+        corners, vid, sign, twin, dup, pair_faces(corners, vid, chart, n_charts, dup, ~degenerate_mask))
     n_exact += n_exact_pairs
     if not bbox_complete:
         notes.append(f"listing stopped after {len(pairs)} overlapping pairs (the layout is invalid; "
@@ -245,16 +247,19 @@ def validate(
     return report
 
 
-def overlap_pairs(uv: ArrayLike, F: ArrayLike | None, *, chart_ids: ArrayLike | None = None) -> np.ndarray:
+def overlap_pairs(uv: ArrayLike, F: ArrayLike | None, *, chart_ids: ArrayLike | None = None,
+                  prove: bool = True) -> np.ndarray:
     """The overlapping pairs :func:`validate` reports, (p,2) int64 sorted, without its raster pass.
 
     The raster pass only tells sub-pixel overlaps from others and draws the overlap image; the pairs
     themselves come from the exact pass alone, so this is the same list at about two thirds of the
-    cost (for callers that split charts at their overlaps, before packing)."""
+    cost (for callers that split charts at their overlaps, before packing). ``prove=False`` skips the
+    charts' boundary proofs (:func:`~uvbake.validate.boundary.pair_faces`): for charts that failed them."""
     corners, vid, _ = _prepare(uv, F)
     twin, dup = _half_edges(vid)
-    _, _, sign, _, _, _, degenerate_mask = _orientation(corners, vid, twin, chart_ids)
-    return _exact_pairs(corners, vid, sign, twin, dup, ~degenerate_mask)[0]
+    chart, n_charts, sign, _, _, _, degenerate_mask = _orientation(corners, vid, twin, chart_ids)
+    live = pair_faces(corners, vid, chart, n_charts, dup, ~degenerate_mask) if prove else ~degenerate_mask
+    return _exact_pairs(corners, vid, sign, twin, dup, live)[0]
 
 
 def _orientation(corners, vid, twin, chart_ids):
