@@ -55,23 +55,26 @@ def proven_injective(uvs: Sequence[ArrayLike], Fs: Sequence[ArrayLike]) -> np.nd
     return _proven(uv, F, face_chart, np.repeat(np.arange(k), nv), uv[np.minimum(off, len(uv) - 1)])
 
 
-def _proven(uv, F, face_chart, vert_chart, origin):
+def _proven(uv, F, face_chart, vert_chart, origin, seg=None, sign=None):
     """proven_injective of the charts of one mesh (uv, F): ``face_chart`` and ``vert_chart`` number every
-    face's and vertex's chart 0..k-1 (no vertex in two charts), ``origin`` (k,2) a point of each chart."""
+    face's and vertex's chart 0..k-1 (no vertex in two charts), ``origin`` (k,2) a point of each chart.
+    ``seg`` (the boundary half-edges) and ``sign`` (each face's exact orientation) when known."""
     from uvbake.mesh.topology import boundary_edges
 
     k = len(origin)
     ok = np.bincount(face_chart, minlength=k) > 0
-    A, B, C = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
-    sign, _ = _orient(A[:, 0], A[:, 1], B[:, 0], B[:, 1], C[:, 0], C[:, 1])
+    if sign is None:
+        A, B, C = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
+        sign, _ = _orient(A[:, 0], A[:, 1], B[:, 0], B[:, 1], C[:, 0], C[:, 1])
     ok &= np.bincount(face_chart[sign <= 0], minlength=k) == 0
-    seg = boundary_edges(F, len(uv))
+    seg = boundary_edges(F, len(uv)) if seg is None else seg
     seg_chart = vert_chart[seg[:, 0]]
     ok &= np.bincount(seg_chart, minlength=k) >= 3
     bv = unique_sorted(seg)                                # two boundary vertices of one chart at one position
-    _, inv, cnt = np.unique(np.column_stack([vert_chart[bv], uv[bv]]), axis=0, return_inverse=True,
-                            return_counts=True)
-    ok[vert_chart[bv[cnt[inv.ravel()] > 1]]] = False
+    order = np.lexsort((uv[bv, 1], uv[bv, 0], vert_chart[bv]))
+    c, u = vert_chart[bv[order]], uv[bv[order]]
+    same = (c[1:] == c[:-1]) & (u[1:] == u[:-1]).all(axis=1)
+    ok[c[1:][same]] = False
     i, j = _candidate_pairs(uv, seg, seg_chart)
     if i is None:
         return np.zeros(k, bool)
@@ -156,8 +159,8 @@ def _touch(uv, s, t):
     return (o1.astype(np.int64) * o2 <= 0) & (o3.astype(np.int64) * o4 <= 0)
 
 
-def pair_faces(corners: np.ndarray, vid: np.ndarray, chart: np.ndarray, n_charts: int, dup: np.ndarray,
-               live: np.ndarray) -> np.ndarray:
+def pair_faces(corners: np.ndarray, vid: np.ndarray, chart: np.ndarray, n_charts: int, twin: np.ndarray,
+               dup: np.ndarray, sign: np.ndarray, live: np.ndarray) -> np.ndarray:
     """The faces of ``live`` that can be in an overlapping pair: a chart whose boundary proves it
     injective (:func:`_proven`, on the layout's own welded corners) has no pair inside it, so its faces
     lying outside every other chart's bounding box are dropped (two faces whose interiors meet have
@@ -168,8 +171,8 @@ def pair_faces(corners: np.ndarray, vid: np.ndarray, chart: np.ndarray, n_charts
     proof's cost grows with the chart, what it saves with those faces), none unless MIN_FAR_FACES
     faces would go, and not those with a face not
     live, a directed edge twice (``dup``: a fold or a non-manifold edge) or a vertex shared with
-    another chart. corners (m,3,2), vid (m,3) welded corner ids, chart (m,) 0..n_charts-1, dup (3m,),
-    live (m,) bool.
+    another chart. corners (m,3,2), vid (m,3) welded corner ids, chart (m,) 0..n_charts-1, twin and dup
+    (3m,) (uvbake.validate.candidates._half_edges), sign (m,) exact orientations, live (m,) bool.
     """
     m = len(corners)
     c0, c1, c2 = corners[:, 0], corners[:, 1], corners[:, 2]
@@ -199,7 +202,11 @@ def pair_faces(corners: np.ndarray, vid: np.ndarray, chart: np.ndarray, n_charts
     origin = np.zeros((n_charts, 2))
     ids, first = np.unique(chart[faces], return_index=True)
     origin[ids] = corners[faces[first], 0]                       # a corner of each chart's first face
-    proven = tried & _proven(uv, inv.reshape(-1, 3), chart[faces], vert_chart, origin)
+    # boundary half-edges: those without a twin (half-edge 3 f + k runs from corner k to corner k + 1)
+    F_loc = inv.reshape(-1, 3)
+    edge = twin[(3 * faces[:, None] + np.arange(3)).ravel()] < 0
+    seg = np.column_stack([F_loc.ravel()[edge], F_loc[:, [1, 2, 0]].ravel()[edge]])
+    proven = tried & _proven(uv, F_loc, chart[faces], vert_chart, origin, seg, sign[faces])
     return live & (~proven[chart] | near)
 
 
@@ -211,25 +218,28 @@ MIN_FAR_FACES = 512
 
 
 def _near_other_charts(bmin, bmax, chart, n_charts, live):
-    """(m,) whether each face's box meets (with positive area) the box around where its chart's box
-    meets the others' (each chart's box: of its ``live`` faces)."""
+    """(m,) whether each face's box touches a cell of a grid (uvbake.validate.candidates.grid_cells)
+    that another chart's live face touches too. Two faces whose interiors meet both touch the cell of
+    the lower-left corner of their boxes' meeting, so a face touching only its own chart's cells is in
+    no pair with another chart's."""
+    from uvbake.validate.candidates import grid_cells
+
+    near = np.zeros(len(bmin), bool)
     faces = np.flatnonzero(live)
-    order = faces[np.argsort(chart[faces], kind="stable")]
-    ids, starts = np.unique(chart[order], return_index=True)
-    lo = np.full((n_charts, 2), np.inf)
-    hi = np.full((n_charts, 2), -np.inf)
-    if len(order):
-        lo[ids] = np.minimum.reduceat(bmin[order], starts)
-        hi[ids] = np.maximum.reduceat(bmax[order], starts)
-    a, b = _meeting_boxes(lo[ids], hi[ids])
-    a, b = ids[a], ids[b]
-    meet_lo, meet_hi = np.maximum(lo[a], lo[b]), np.minimum(hi[a], hi[b])
-    near_lo = np.full((n_charts, 2), np.inf)
-    near_hi = np.full((n_charts, 2), -np.inf)
-    for side in (a, b):                                          # both charts of each pair
-        np.minimum.at(near_lo, side, meet_lo)
-        np.maximum.at(near_hi, side, meet_hi)
-    return ((bmax > near_lo[chart]) & (bmin < near_hi[chart])).all(axis=1)
+    grid = grid_cells(bmin, bmax, faces, widen=NEAR_CELL) if len(faces) else None
+    if grid is None:                         # every box one point: no two interiors meet
+        return near
+    f, key, _, _ = grid
+    touch = unique_sorted(key * n_charts + chart[f])          # distinct (cell, chart)
+    cells, count = np.unique(touch // n_charts, return_counts=True)
+    shared = cells[count > 1]
+    at = np.minimum(np.searchsorted(shared, key), max(len(shared) - 1, 0))
+    near[f[shared[at] == key] if len(shared) else f[:0]] = True
+    return near
+
+
+#: Cells of _near_other_charts's grid, in typical face sizes.
+NEAR_CELL = 2.0
 
 
 def _meeting_boxes(lo, hi):

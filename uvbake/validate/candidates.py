@@ -152,6 +152,37 @@ def _raw_budget(m):
     return max(budgets.MIN_RAW_PAIRS, budgets.RAW_PAIRS_PER_FACE * m)
 
 
+def grid_cells(bmin: np.ndarray, bmax: np.ndarray, faces: np.ndarray, widen: float = 1.0) -> tuple | None:
+    """The cells of a uniform grid that the boxes [bmin, bmax] of ``faces`` touch: (face, cell key) of
+    every touch, each face's lowest cell (k,2) and the grid's rows; None when the boxes span nothing.
+
+    Cells are about as wide as a typical box's geometric mean side (times ``widen``): a sliver's box is
+    long and thin, and cells as wide as its long side would hold every sliver lying beside it (measured
+    in docs/decisions/atlas-speed.md); they are doubled until there are at most 16 touches a face.
+    ``floor`` is monotone, so boxes meeting at a point both touch that point's cell.
+    """
+    wh = (bmax - bmin)[faces]
+    lo = bmin[faces].min(axis=0)
+    span = float((bmax[faces].max(axis=0) - lo).max())
+    if span == 0.0:
+        return None
+    cell = max(widen * float(np.median(np.sqrt(wh[:, 0] * wh[:, 1]))), span / 65536.0)
+    while True:
+        c0 = np.floor((bmin[faces] - lo) / cell).astype(np.int64)
+        c1 = np.floor((bmax[faces] - lo) / cell).astype(np.int64)
+        ny_cells = c1[:, 1] - c0[:, 1] + 1
+        ncell = (c1[:, 0] - c0[:, 0] + 1) * ny_cells
+        if ncell.sum() <= 16 * len(faces) + 1024:
+            break
+        cell *= 2.0
+    ny = int(c1[:, 1].max()) + 1
+    f = np.repeat(faces, ncell)
+    k = np.arange(len(f)) - np.repeat(np.cumsum(ncell) - ncell, ncell)
+    nyc = np.repeat(ny_cells, ncell)
+    key = (np.repeat(c0[:, 0], ncell) + k // nyc) * ny + np.repeat(c0[:, 1], ncell) + k % nyc
+    return f, key, c0, ny
+
+
 def _bbox_pairs(corners, live, disjoint=None, confirm=None, max_pairs=None):
     """Pairs (i<j) of live faces whose bounding boxes overlap with positive area (and, with
     ``confirm``, that it confirms), enumerated in bounded chunks.
@@ -187,28 +218,10 @@ def _bbox_pairs(corners, live, disjoint=None, confirm=None, max_pairs=None):
         return np.zeros((0, 2), np.int64), True, 0
     bmin = corners.min(axis=1)
     bmax = corners.max(axis=1)
-    wh = (bmax - bmin)[faces]
-    lo = bmin[faces].min(axis=0)
-    span = float((bmax[faces].max(axis=0) - lo).max())
-    if span == 0.0:
+    grid = grid_cells(bmin, bmax, faces)
+    if grid is None:
         return np.zeros((0, 2), np.int64), True, 0
-    # cells about as wide as a typical box's geometric mean side: a sliver's box is long and thin, and
-    # cells as wide as its long side would hold every sliver lying beside it (measured in
-    # docs/decisions/atlas-speed.md); the loop below bounds the cells
-    cell = max(float(np.median(np.sqrt(wh[:, 0] * wh[:, 1]))), span / 65536.0)
-    while True:
-        c0 = np.floor((bmin[faces] - lo) / cell).astype(np.int64)
-        c1 = np.floor((bmax[faces] - lo) / cell).astype(np.int64)
-        ny_cells = c1[:, 1] - c0[:, 1] + 1
-        ncell = (c1[:, 0] - c0[:, 0] + 1) * ny_cells
-        if ncell.sum() <= 16 * len(faces) + 1024:
-            break
-        cell *= 2.0
-    ny = int(c1[:, 1].max()) + 1
-    f = np.repeat(faces, ncell)
-    k = np.arange(len(f)) - np.repeat(np.cumsum(ncell) - ncell, ncell)
-    nyc = np.repeat(ny_cells, ncell)
-    key = (np.repeat(c0[:, 0], ncell) + k // nyc) * ny + np.repeat(c0[:, 1], ncell) + k % nyc
+    f, key, c0, ny = grid
     cx = np.zeros(m, np.int64)
     cy = np.zeros(m, np.int64)
     cx[faces], cy[faces] = c0[:, 0], c0[:, 1]

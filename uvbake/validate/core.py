@@ -153,7 +153,7 @@ def validate(
     # ---- exact pass -----------------------------------------------------------------------------
     notes: list[str] = []
     pairs, bbox_complete, n_cand, n_exact_pairs = _exact_pairs(
-        corners, vid, sign, twin, dup, pair_faces(corners, vid, chart, n_charts, dup, ~degenerate_mask))
+        corners, vid, sign, twin, dup, pair_faces(corners, vid, chart, n_charts, twin, dup, sign, ~degenerate_mask))
     n_exact += n_exact_pairs
     if not bbox_complete:
         notes.append(f"listing stopped after {len(pairs)} overlapping pairs (the layout is invalid; "
@@ -258,7 +258,7 @@ def overlap_pairs(uv: ArrayLike, F: ArrayLike | None, *, chart_ids: ArrayLike | 
     corners, vid, _ = _prepare(uv, F)
     twin, dup = _half_edges(vid)
     chart, n_charts, sign, _, _, _, degenerate_mask = _orientation(corners, vid, twin, chart_ids)
-    live = pair_faces(corners, vid, chart, n_charts, dup, ~degenerate_mask) if prove else ~degenerate_mask
+    live = pair_faces(corners, vid, chart, n_charts, twin, dup, sign, ~degenerate_mask) if prove else ~degenerate_mask
     return _exact_pairs(corners, vid, sign, twin, dup, live)[0]
 
 
