@@ -32,7 +32,7 @@ from uvbake.atlas.conformal import _frames, conformal_factor, conformal_factors
 from uvbake.atlas.guarantee import COLLAPSED
 from uvbake.atlas.opening import nearly_closed, open_holes, slit
 from uvbake.errors import ChartError, InputError
-from uvbake.mesh.arrays import dense_ranks, triangle_areas, unique_sorted, unit_normals
+from uvbake.mesh.arrays import dense_ranks, face_means, triangle_areas, unique_sorted, unit_normals
 from uvbake.mesh.charts import Chart, certified_disks, check_chart, split_charts
 from uvbake.mesh.graph import components
 from uvbake.mesh.topology import face_adjacency
@@ -238,7 +238,7 @@ def _smoothed(F, n, logf, area):
     num = np.bincount(F.ravel(), weights=w * np.repeat(x, 3), minlength=n)
     den = np.bincount(F.ravel(), weights=w, minlength=n)
     xv = num / np.maximum(den, 1e-300)
-    return xv[F].mean(axis=1)
+    return face_means(xv, F)
 
 
 def _absorb_slivers(F, n, comp_labels, area, min_share, adjacency=None):

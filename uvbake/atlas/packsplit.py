@@ -26,7 +26,7 @@ from uvbake.atlas.pack import _SHAPES_ONLY_FILL, PackResult, _check_gutter, _che
 from uvbake.cancel import check_cancelled
 from uvbake.errors import InputError
 from uvbake.flatten.solvers.result import ParamResult
-from uvbake.mesh.arrays import signed_areas, unique_sorted
+from uvbake.mesh.arrays import face_means, signed_areas, unique_sorted
 from uvbake.mesh.charts import Chart
 
 #: Split rounds at most (each cuts one chart in two or three and makes one trial layout).
@@ -218,7 +218,7 @@ def split_straight(chart: Chart, result: ParamResult,
     F, uv = chart.F, np.asarray(result.uv)
     m, n = len(F), len(chart.V)
     theta = min_area_rect(uv)[0] if theta is None else theta
-    c = uv[F].mean(axis=1)
+    c = face_means(uv, F)
     x = np.cos(theta) * c[:, 0] - np.sin(theta) * c[:, 1]      # along the rectangle's long side
     a = np.abs(signed_areas(uv, F))
     order = np.argsort(x, kind="stable")

@@ -73,6 +73,12 @@ def unit_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
 
 
+def face_means(X: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """``X[F].mean(axis=1)`` bit for bit (the same sum in the same order, then / 3), without numpy's
+    reduction over a 3-long axis: 3x faster."""
+    return (X[F[:, 0]] + X[F[:, 1]] + X[F[:, 2]]) / 3
+
+
 def signed_areas(uv: np.ndarray, F: np.ndarray | None = None) -> np.ndarray:
     """Signed areas (m,) of the triangles F of a UV map uv (n,2), or of per-corner UVs (m,3,2) when F is
     None: positive = counter-clockwise."""
