@@ -162,17 +162,16 @@ def _touch(uv, s, t):
 def pair_faces(corners: np.ndarray, vid: np.ndarray, chart: np.ndarray, n_charts: int, twin: np.ndarray,
                dup: np.ndarray, sign: np.ndarray, live: np.ndarray) -> np.ndarray:
     """The faces of ``live`` that can be in an overlapping pair: a chart whose boundary proves it
-    injective (:func:`_proven`, on the layout's own welded corners) has no pair inside it, so its faces
-    lying outside every other chart's bounding box are dropped (two faces whose interiors meet have
-    boxes meeting with positive area, inside both charts' boxes). The overlapping pairs among the
-    faces kept are all those among ``live``.
+    injective (:func:`_proven`, on the layout's own welded corners) has no pair inside it, so of its
+    faces only those near another chart's (:func:`_near_other_charts`) are kept. The overlapping pairs
+    among the faces kept are all those among ``live``.
 
-    Only charts with at least FAR_SHARE of their faces outside the other charts' boxes are tried (the
+    Only charts with at least FAR_SHARE of their faces away from the other charts are tried (the
     proof's cost grows with the chart, what it saves with those faces), none unless MIN_FAR_FACES
-    faces would go, and not those with a face not
-    live, a directed edge twice (``dup``: a fold or a non-manifold edge) or a vertex shared with
-    another chart. corners (m,3,2), vid (m,3) welded corner ids, chart (m,) 0..n_charts-1, twin and dup
-    (3m,) (uvbake.validate.candidates._half_edges), sign (m,) exact orientations, live (m,) bool.
+    faces would go, and not those with a face not live, a directed edge twice (``dup``: a fold or a
+    non-manifold edge) or a vertex shared with another chart. corners (m,3,2), vid (m,3) welded corner
+    ids, chart (m,) 0..n_charts-1, twin and dup (3m,) (uvbake.validate.candidates._half_edges), sign (m,)
+    exact orientations, live (m,) bool.
     """
     m = len(corners)
     c0, c1, c2 = corners[:, 0], corners[:, 1], corners[:, 2]
@@ -240,17 +239,3 @@ def _near_other_charts(bmin, bmax, chart, n_charts, live):
 
 #: Cells of _near_other_charts's grid, in typical face sizes.
 NEAR_CELL = 2.0
-
-
-def _meeting_boxes(lo, hi):
-    """Index pairs (a, b), a < b, of the boxes [lo, hi] (k,2) that meet with positive area: every pair
-    tested for up to 256 boxes, the candidate grid beyond."""
-    k = len(lo)
-    if k > 256:
-        from uvbake.validate.candidates import _bbox_pairs
-
-        pairs = _bbox_pairs(np.stack([lo, hi, lo], axis=1), np.ones(k, bool))[0]
-        return pairs[:, 0], pairs[:, 1]
-    a, b = np.triu_indices(k, 1)
-    meet = ((np.maximum(lo[a], lo[b]) < np.minimum(hi[a], hi[b])).all(axis=1))
-    return a[meet], b[meet]
