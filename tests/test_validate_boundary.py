@@ -168,3 +168,27 @@ def test_proven_charts_apart_take_no_pair_test():
     _, vid, _ = _prepare(corners, np.where(np.arange(len(corners))[:, None] == len(corners) // 2,
                                            np.array([[0, 1, 2]]), np.arange(3 * len(corners)).reshape(-1, 3)))
     assert pair_faces(corners, vid, ids, 2, *_half_edges(vid), sign, live).all()
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_pairs_with_the_proof_on_random_moves_of_a_split_grid(seed, monkeypatch):
+    """A jittered grid cut into four quadrant charts, each moved by a random offset (even seeds: outwards,
+    apart; odd seeds: anywhere, onto each other; some not at all: then the quadrants share vertices and
+    are not tried): the proof's pairs are the full check's."""
+    import uvbake.validate.core as core
+    from uvbake.validate import validate
+
+    rng = np.random.default_rng(seed)
+    V, F = grid(40, 40, jitter=0.3, seed=seed)
+    c = V[F].mean(axis=1)
+    ids = (c[:, 0] > 0.5).astype(np.int64) + 2 * (c[:, 1] > 0.5)
+    outward = np.array([[-1.0, -1.0], [1.0, -1.0], [-1.0, 1.0], [1.0, 1.0]])
+    move = (outward * rng.uniform(0.01, 0.5, (4, 1)) if seed % 2 == 0 else rng.normal(0.0, 0.3, (4, 2)))
+    move *= rng.random((4, 1)) < 0.75
+    corners = V[F] + move[ids][:, None, :]
+    fast = validate(corners, F, chart_ids=ids, resolution_px=256)
+    monkeypatch.setattr(core, "pair_faces", lambda *args: args[-1])
+    full = validate(corners, F, chart_ids=ids, resolution_px=256)
+    np.testing.assert_array_equal(fast.overlap_pairs, full.overlap_pairs)
+    assert fast.valid == full.valid
+    assert fast.n_candidates <= full.n_candidates
