@@ -163,10 +163,16 @@ def test_proven_charts_apart_take_no_pair_test():
     _, vid, _ = _prepare(corners, None)
     live, sign = np.ones(len(corners), bool), np.ones(len(corners), np.int8)
     assert not pair_faces(corners, vid, ids, 2, *_half_edges(vid), sign, live).any()
-    # a shared vertex between the charts (the same corner welded into both): neither is tried
-    corners[len(corners) // 2, 0] = corners[0, 0]
-    _, vid, _ = _prepare(corners, np.where(np.arange(len(corners))[:, None] == len(corners) // 2,
-                                           np.array([[0, 1, 2]]), np.arange(3 * len(corners)).reshape(-1, 3)))
+    # a vertex shared by the charts: the first face of the second chart gets its first corner at the
+    # first chart's first corner, with the same vertex id, so the two corners weld into one vertex;
+    # then neither chart is tried and every face is kept
+    k = len(corners) // 2
+    assert ids[k] == 1 and ids[0] == 0
+    corners[k, 0] = corners[0, 0]
+    F = np.arange(3 * len(corners)).reshape(-1, 3)
+    F[k, 0] = F[0, 0]
+    _, vid, _ = _prepare(corners, F)
+    assert vid[k, 0] == vid[0, 0]
     assert pair_faces(corners, vid, ids, 2, *_half_edges(vid), sign, live).all()
 
 

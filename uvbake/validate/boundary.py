@@ -173,10 +173,10 @@ def pair_faces(corners: np.ndarray, vid: np.ndarray, chart: np.ndarray, n_charts
     ids, chart (m,) 0..n_charts-1, twin and dup (3m,) (uvbake.validate.candidates._half_edges), sign (m,)
     exact orientations, live (m,) bool.
     """
+    from uvbake.validate.candidates import corner_boxes
+
     m = len(corners)
-    c0, c1, c2 = corners[:, 0], corners[:, 1], corners[:, 2]
-    bmin = np.minimum(np.minimum(c0, c1), c2)                    # 5x faster than min(axis=1) over 3
-    bmax = np.maximum(np.maximum(c0, c1), c2)
+    bmin, bmax = corner_boxes(corners)
     near = _near_other_charts(bmin, bmax, chart, n_charts, live)
     far = np.bincount(chart[live & ~near], minlength=n_charts)
     tried = far >= FAR_SHARE * np.bincount(chart, minlength=n_charts)

