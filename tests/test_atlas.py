@@ -689,6 +689,27 @@ def test_merges_joined_ahead_decide_what_merges_joined_in_turn_decide(monkeypatc
         np.testing.assert_allclose(uv, uv1, rtol=0, atol=1e-12 * np.abs(uv1).max())
 
 
+def test_no_pair_sharing_a_chart_with_the_next_try_is_joined_ahead(monkeypatch):
+    # if the pair tried next merges, every other pair holding one of its two charts is stale: joining
+    # and solving those ahead was wasted work (a box's six crease parts: 16 joins for 6 tries)
+    from trimesh import creation
+
+    from uvbake.atlas import merge
+
+    box = creation.box(extents=(3.0, 2.0, 1.0)).subdivide().subdivide()
+    V, F = np.asarray(box.vertices), np.asarray(box.faces)
+    calls = []
+    real_join, real_ahead = merge.join_charts, merge._join_ahead
+    monkeypatch.setattr(merge, "join_charts", lambda a, b, *r: calls[-1].append({id(a), id(b)}) or real_join(a, b, *r))
+    monkeypatch.setattr(merge, "_join_ahead", lambda *a: calls.append([]) or real_ahead(*a))
+    _, _, log = make_charts(V, F)
+    assert sum("merged" in c for c in log["budget_cuts"]) >= 3
+    assert len(calls) >= 3 and max(len(c) for c in calls) >= 2       # pairs are still joined ahead
+    for made in calls:
+        assert all(not (pair & made[0]) for pair in made[1:])
+    assert sum(len(c) for c in calls) < 16
+
+
 def test_a_joins_disk_check_is_topologys_verdict():
     # join_charts asks only for the edges and boundary loops of the joined chart (one piece, every
     # vertex used); its verdict must be topology()'s "genus 0 with a boundary" on every kind of piece

@@ -89,23 +89,25 @@ MERGE_AHEAD = 16
 
 def _join_ahead(st, order, at, serial, tried, cache, ahead):
     """Join the pair at ``at`` and the next MERGE_AHEAD - 1 untried pairs of ``order`` whose merged chart
-    would have at most BATCH_FACES triangles into ``ahead`` (the pair's chart ids -> (chart, chart,
-    merged chart or None)) and solve the small merged charts' conformal maps together (a kit or a
-    spiky surface tries dozens of merges of a few dozen triangles each). A merge
+    would have at most BATCH_FACES triangles and share no chart with the pair at ``at`` into ``ahead``
+    (the pair's chart ids -> (chart, chart, merged chart or None)) and solve the small merged charts'
+    conformal maps together (a kit or a spiky surface tries dozens of merges of a few dozen triangles
+    each; should the pair at ``at`` merge, a pair holding one of its charts would be wasted work). A merge
     replaces its charts by a new one, and an entry holds its two charts (their ids stay theirs), so a
     pair made ahead is exactly what its turn would make."""
     from uvbake.atlas.charting import BATCH_FACES
 
     i, j = order
-    made = []
+    made, busy = [], set()                             # busy: the charts of the pair at `at`
     for k in range(at, len(i)):                        # one per pair, at most MERGE_AHEAD made
         a, b = st.done[int(i[k])], st.done[int(j[k])]
         key = _pair(id(a), id(b))
         if _pair(serial[int(i[k])], serial[int(j[k])]) in tried or key in ahead:
             continue
-        if k > at and len(a.F) + len(b.F) > BATCH_FACES:
-            continue                                   # a large merge is joined in its turn: a merge before
-        ahead[key] = (a, b, join_charts(a, b, cache))  # it may make this join wasted work
+        if k > at and (len(a.F) + len(b.F) > BATCH_FACES or id(a) in busy or id(b) in busy):
+            continue                                   # joined in its turn: a merge before it may make
+        busy.update((id(a), id(b)) if k == at else ())  # this join wasted work
+        ahead[key] = (a, b, join_charts(a, b, cache))
         made.append(ahead[key][2])
         if len(made) == MERGE_AHEAD:
             break
