@@ -13,13 +13,16 @@ import numpy as np
 
 from uvbake.atlas.shapepack import ShapePacker, ShapePacking
 
-# Swapped chart orders (fit_width's swaps): a bottom-left fill of 5-8 large charts is only as good as
+# Swapped chart orders (fit_width's swaps): a bottom-left fill of 5-16 large charts is only as good as
 # the order it places them in, and a hill climb on pair swaps of the best order finds much of what the
 # best order would give. Each swap costs two strip packings, so the budget is a work count: one swap
-# per FACES_PER_SWAP faces (about 5 % of the command's CPU), none below MIN_SWAPS (a climb that short
-# rarely gains), at most MAX_SWAPS; past SWAPS_UP_TO charts a swap changes little. Measurements:
-# docs/decisions/pack.md (2026-12-01, sixth session).
-SWAPS_UP_TO = 8
+# per FACES_PER_SWAP faces (about 5 % of the command's CPU) for up to SWAPS_COUNTED charts, past them
+# per FACES_PER_SWAP * n / SWAPS_COUNTED faces (a strip packing's cost grows with the chart count),
+# none below MIN_SWAPS (a climb that short rarely gains), at most MAX_SWAPS; past SWAPS_UP_TO charts a
+# swap changes little. Measurements: docs/decisions/pack.md (2026-12-01, sixth session; 2026-12-03,
+# fourth session).
+SWAPS_UP_TO = 16
+SWAPS_COUNTED = 8
 MIN_SWAPS = 4
 MAX_SWAPS = 12
 FACES_PER_SWAP = 1500
@@ -30,7 +33,7 @@ def swap_budget(n: int, faces: int) -> int:
     instead) of ``faces`` triangles in all."""
     if n > SWAPS_UP_TO:
         return 0
-    k = min(MAX_SWAPS, faces // FACES_PER_SWAP)
+    k = min(MAX_SWAPS, int(faces * SWAPS_COUNTED // (FACES_PER_SWAP * max(n, SWAPS_COUNTED))))
     return k if k >= MIN_SWAPS else 0
 
 
