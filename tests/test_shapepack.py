@@ -490,6 +490,39 @@ def test_row_widening_is_scipys_maximum_filter():
         assert np.array_equal(_widen_rows(a, r), maximum_filter1d(a, size=2 * r + 1, axis=1, mode="constant"))
 
 
+def test_run_tables_updated_in_place_are_the_tables_recomputed():
+    """update_runs refreshes the free-run table and row maxima after texels of a box of rows and
+    columns were blocked (placing) or freed (compaction lifts charts); the result must be a brute-force
+    count of each texel's free run, exactly, after every change of a random sequence."""
+    from uvbake.atlas.shapepack import update_runs
+
+    def brute(blocked):
+        h, w = blocked.shape
+        out = np.zeros((h, w), np.int64)
+        for y in range(h):                          # test oracle: a plain scan of each row from the right
+            n = 0
+            for x in range(w - 1, -1, -1):
+                n = 0 if blocked[y, x] else n + 1
+                out[y, x] = n
+        return out
+
+    rng = np.random.default_rng(5)
+    for _ in range(60):
+        h, w = int(rng.integers(1, 16)), int(rng.integers(1, 40))
+        blocked = rng.random((h, w)) < rng.uniform(0.0, 0.6)
+        run = shapepack._free_runs(blocked)
+        rowmax = run.max(axis=1)
+        for _ in range(6):
+            r0 = int(rng.integers(0, h))
+            r1 = int(rng.integers(r0, h + 1))
+            c0 = int(rng.integers(0, w))
+            c1 = int(rng.integers(c0, w + 1))
+            blocked[r0:r1, c0:c1] = rng.random((r1 - r0, c1 - c0)) < rng.uniform(0.0, 1.0)
+            update_runs(blocked, run, rowmax, r0, r1, c0, c1)
+            ref = brute(blocked)
+            assert np.array_equal(run, ref) and np.array_equal(rowmax, ref.max(axis=1))
+
+
 def test_runs_of_footprints_found_together_are_each_footprints_own_runs(monkeypatch):
     """The packer finds the horizontal runs of every candidate footprint in one pass (footprints laid
     end to end, padded by a free column); each footprint's runs must be its own (a brute-force scan

@@ -168,16 +168,25 @@ def _free_runs(blocked, after=None):
 def update_runs(blocked: np.ndarray, run: np.ndarray, rowmax: np.ndarray, r0: int, r1: int, c0: int,
                 c1: int) -> None:
     """Refresh the free-run tables of rows ``r0:r1`` after their blocked texels changed in columns
-    ``c0:c1`` only: a run starting right of ``c1`` or ending (at a blocked texel) left of ``c0`` is
-    unchanged, so each row is recomputed from its last blocked texel left of ``c0`` to ``c1``."""
+    ``c0:c1`` only: those columns are recomputed; left of ``c0`` only the runs starting right of a row's
+    last blocked texel change, each by what the run starting at ``c0`` changed (a run through free
+    texels up to ``c0`` continues with it); a run starting right of ``c1`` does not change."""
     w = blocked.shape[1]
     b = blocked[r0:r1]
-    left = b[:, :c0]
-    # first column whose run can change, per row: just right of the last blocked texel left of c0
-    last = np.where(left.any(axis=1), c0 - np.argmax(left[:, ::-1], axis=1), 0) if c0 > 0 else np.zeros(r1 - r0, int)
-    lo = int(last.min()) if len(last) else 0
     after = run[r0:r1, c1] if c1 < w else np.zeros(r1 - r0, _RUN)
-    run[r0:r1, lo:c1] = _free_runs(b[:, lo:c1], after)
+    new = _free_runs(b[:, c0:c1], after)
+    if c0 > 0 and c1 > c0:
+        delta = new[:, 0] - run[r0:r1, c0]
+        rows = np.flatnonzero(delta)
+        if len(rows):
+            left = b[rows, :c0]
+            # per changed row, the last blocked column left of c0 (-1: none)
+            last = np.where(left.any(axis=1), c0 - 1 - np.argmax(left[:, ::-1], axis=1), -1)
+            lo = int(last.min()) + 1
+            if lo < c0:
+                shift = (np.arange(lo, c0)[None, :] > last[:, None]) * delta[rows, None]
+                run[r0 + rows, lo:c0] += shift.astype(_RUN)
+    run[r0:r1, c0:c1] = new
     rowmax[r0:r1] = run[r0:r1].max(axis=1)
 
 
