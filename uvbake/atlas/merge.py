@@ -105,8 +105,9 @@ def _join_ahead(st, order, at, serial, tried, cache, ahead):
         if _pair(serial[int(i[k])], serial[int(j[k])]) in tried or key in ahead:
             continue
         if k > at and (len(a.F) + len(b.F) > BATCH_FACES or id(a) in busy or id(b) in busy):
-            continue                                   # joined in its turn: a merge before it may make
-        busy.update((id(a), id(b)) if k == at else ())  # this join wasted work
+            continue                                   # joined in its turn (a merge before may waste it)
+        if k == at:
+            busy.update((id(a), id(b)))
         ahead[key] = (a, b, join_charts(a, b, cache))
         made.append(ahead[key][2])
         if len(made) == MERGE_AHEAD:
