@@ -174,14 +174,14 @@ def test_swapped_orders_stay_within_their_budget_and_only_raise_the_density(monk
     assert fit_width(packer, W, H, g, guess, order_packs=2, swaps=0).density == plain.density
 
 
-@pytest.mark.parametrize("n, swaps, at_least", [(6, 10, 3), (12, 8, 2)])
-def test_swapped_orders_make_sets_of_six_and_twelve_charts_denser(n, swaps, at_least):
-    # on eight random sets of six charts the climb gained on five (by 0.9-2.2 %) when written, on eight
-    # sets of twelve on three (0.8-3.5 %; past eight charts a swap was once said to change little, and
+@pytest.mark.parametrize("n, swaps, sets, at_least", [(6, 10, 8, 3), (12, 8, 16, 3)])
+def test_swapped_orders_make_sets_of_six_and_twelve_charts_denser(n, swaps, sets, at_least):
+    # on eight random sets of six charts the climb gained on five (by 0.9-2.2 %) when written, on sixteen
+    # sets of twelve on seven (0.8-3.7 %; past eight charts a swap was once said to change little, and
     # xatlas's 13 charts of fandisk went 64.6 -> 67.9 % in bench/pack.py); a rasterised footprint can
     # move with the last bits of a CPU's sin and cos, so fewer gains are asked for
     gains = 0
-    for seed in range(8):
+    for seed in range(sets):
         uvs, faces = mixed_charts(seed, n=n)
         packer = ShapePacker(uvs, faces, [np.array([0.0, np.pi / 4])] * len(uvs))
         guess = np.sqrt(0.5 * 256 * 256 / packer.area.sum())
