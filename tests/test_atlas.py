@@ -691,7 +691,8 @@ def test_merges_joined_ahead_decide_what_merges_joined_in_turn_decide(monkeypatc
 
 def test_no_pair_sharing_a_chart_with_the_next_try_is_joined_ahead(monkeypatch):
     # if the pair tried next merges, every other pair holding one of its two charts is stale: joining
-    # and solving those ahead was wasted work (a box's six crease parts: 16 joins for 6 tries)
+    # and solving those ahead was wasted work (this box's six crease parts: 17 joins for 4 merges, 9
+    # without them)
     from trimesh import creation
 
     from uvbake.atlas import merge
@@ -707,7 +708,7 @@ def test_no_pair_sharing_a_chart_with_the_next_try_is_joined_ahead(monkeypatch):
     assert len(calls) >= 3 and max(len(c) for c in calls) >= 2       # pairs are still joined ahead
     for made in calls:
         assert all(not (pair & made[0]) for pair in made[1:])
-    assert sum(len(c) for c in calls) < 16
+    assert sum(len(c) for c in calls) <= 12
 
 
 def test_a_joins_disk_check_is_topologys_verdict():
