@@ -228,12 +228,13 @@ def test_slivers_do_not_set_the_preconditioners_shift(monkeypatch):
     V, F = _slivered_disk()
     r = parameterize(V, F, alpha=0.5, max_iter=300)
     assert r.stop_reason in ("converged", "roundoff limited") and r.iterations <= 60 and r.n_flipped == 0
-    # the shift against the largest entry (the rule before): after 100 steps F is still above that
-    # minimum, by 7e-5 relative with CHOLMOD (gradient 327 against 0.07), 2e-5 with SuperLU (2.9
-    # against 0.26)
+    # the shift against the largest entry (the rule before), given the 60 steps the rule now needs at most:
+    # F is still 3e-3 relative above that minimum with CHOLMOD, 8e-3 with SuperLU (two AMD hosts). Not
+    # compared after 100 steps, nor by the gradient: there the gap (7e-5 on one host, 3e-6 on another)
+    # and the gradients at rounding (0.07 against 0.8 at the same minimum) depend on the host's BLAS
     monkeypatch.setattr(trust, "SPREAD", np.inf)
-    slow = parameterize(V, F, alpha=0.5, max_iter=100)
-    assert slow.stop_reason == "max_iter" and slow.energy > r.energy * (1 + 1e-7) and slow.grad_norm > 2 * r.grad_norm
+    slow = parameterize(V, F, alpha=0.5, max_iter=60)
+    assert slow.stop_reason == "max_iter" and slow.energy > r.energy * (1 + 1e-4)
 
 
 @pytest.mark.parametrize("step", ["trust", "damped"])
