@@ -9,6 +9,7 @@ their neighbour is cut too. Measurements: docs/decisions/atlas-speed.md.
 
 from __future__ import annotations
 
+import bisect
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -33,31 +34,28 @@ def merge_back(st: _Charting) -> None:
     (halftunnel: 13 charts, 4 of them from separating small overlapping sheets). Smallest charts
     first, each tried against its MERGE_TRIES neighbours of the same label with the longest shared
     border; a merged chart is tried again later as a whole. Counted work: at most MERGE_TRIES
-    attempts per chart, never time."""
+    attempts per chart, never time. Charts keep their slot in ``st.done`` until the end (a merge puts
+    the joined chart in the lower slot and empties the other), so a merge costs what its neighbourhood
+    costs, not the whole atlas."""
     from uvbake.atlas.guarantee import area_factors, overlapping_pairs
 
     serial = list(range(len(st.done)))                 # identity of each chart (merged ones get new numbers)
+    alive = len(st.done)
     tried: set[tuple[int, int]] = set()
     cache: dict = {}                                   # boundary of each chart, computed once
     _fill_boundaries(st.done, cache)
     borders = _Borders(st.done, cache)
-    border = borders.border if borders.exact else chart_borders(st.done, cache)
     # only charts with a neighbour are ever ranked or merged: a chart alone (a kit's part, a scan's
     # fragment) needs neither its area nor its least factor (0 keeps the others' relative ranks)
-    near = set(border[:, 0].astype(int).tolist())
-    area = [_area(c) if k in near else 0.0 for k, c in enumerate(st.done)]
+    area = [_area(c) if len(borders.out[k][0]) else 0.0 for k, c in enumerate(st.done)]
     least: list = [None] * len(st.done)                # each chart's least area factor, when first needed
-    order = _merge_order(border, area)
-    at = 0
+    order = _MergeOrder(borders, area, serial, tried)
     ahead: dict = {}                                   # pair of charts (ids) -> the two and their join, made ahead
-    while True:
-        at = _first_untried(order, at, serial, tried)   # the order is walked once between merges
-        if at == len(order[0]):
-            return
-        i, j = int(order[0][at]), int(order[1][at])
+    while (pair := order.first()) is not None:
+        i, j = pair
         key = _pair(id(st.done[i]), id(st.done[j]))
         if key not in ahead:
-            _join_ahead(st, order, at, serial, tried, cache, ahead)
+            _join_ahead(st, order.walk(), cache, ahead)
         tried.add(_pair(serial[i], serial[j]))         # a pair is tried once, from either side
         merged = ahead.pop(key)[2]
         if merged is None:
@@ -78,35 +76,37 @@ def merge_back(st: _Charting) -> None:
         st.budget_cuts.append(dict(merged=[st.done[i].name, st.done[j].name], triangles=int(len(merged.F)),
                                    least_factor=float(np.exp(logf.min()))))
         st.done[keep], st.starts[keep], area[keep] = merged, uv, area[i] + area[j]
-        least[keep], serial[keep] = float(np.exp(logf.min())), len(serial) + len(tried)
-        del st.done[drop], st.starts[drop], area[drop], serial[drop], least[drop]
-        order, at = _merge_order(borders.merged(keep, drop), area), 0
+        least[keep], serial[keep] = float(np.exp(logf.min())), alive + len(tried)
+        st.done[drop] = st.starts[drop] = None
+        alive -= 1
+        order.merged(keep, drop, borders.merged(keep, drop))
+    st.done[:] = [c for c in st.done if c is not None]
+    st.starts[:] = [uv for uv in st.starts if uv is not None]
 
 
 #: Pairs joined ahead of their turn: their small merged charts' conformal maps are solved together.
 MERGE_AHEAD = 16
 
 
-def _join_ahead(st, order, at, serial, tried, cache, ahead):
-    """Join the pair at ``at`` and the next MERGE_AHEAD - 1 untried pairs of ``order`` whose merged chart
-    would have at most BATCH_FACES triangles and share no chart with the pair at ``at`` into ``ahead``
-    (the pair's chart ids -> (chart, chart, merged chart or None)) and solve the small merged charts'
-    conformal maps together (a kit or a spiky surface tries dozens of merges of a few dozen triangles
-    each; should the pair at ``at`` merge, a pair holding one of its charts would be wasted work). A merge
-    replaces its charts by a new one, and an entry holds its two charts (their ids stay theirs), so a
-    pair made ahead is exactly what its turn would make."""
+def _join_ahead(st, pairs, cache, ahead):
+    """Join the first of the untried ``pairs`` (merge_back's order, from the pair tried next) and the
+    next MERGE_AHEAD - 1 whose merged chart would have at most BATCH_FACES triangles and share no chart
+    with the first into ``ahead`` (the pair's chart ids -> (chart, chart, merged chart or None)) and solve
+    the small merged charts' conformal maps together (a kit or a spiky surface tries dozens of merges of
+    a few dozen triangles each; should the first pair merge, a pair holding one of its charts would be
+    wasted work). A merge replaces its charts by a new one, and an entry holds its two charts (their ids
+    stay theirs), so a pair made ahead is exactly what its turn would make."""
     from uvbake.atlas.charting import BATCH_FACES
 
-    i, j = order
-    made, busy = [], set()                             # busy: the charts of the pair at `at`
-    for k in range(at, len(i)):                        # one per pair, at most MERGE_AHEAD made
-        a, b = st.done[int(i[k])], st.done[int(j[k])]
+    made, busy = [], set()                             # busy: the charts of the first pair
+    for n, (i, j) in enumerate(pairs):                 # one per pair, at most MERGE_AHEAD made
+        a, b = st.done[i], st.done[j]
         key = _pair(id(a), id(b))
-        if _pair(serial[int(i[k])], serial[int(j[k])]) in tried or key in ahead:
+        if key in ahead:
             continue
-        if k > at and (len(a.F) + len(b.F) > BATCH_FACES or id(a) in busy or id(b) in busy):
+        if n and (len(a.F) + len(b.F) > BATCH_FACES or id(a) in busy or id(b) in busy):
             continue                                   # joined in its turn (a merge before may waste it)
-        if k == at:
+        if not n:
             busy.update((id(a), id(b)))
         ahead[key] = (a, b, join_charts(a, b, cache))
         made.append(ahead[key][2])
@@ -115,38 +115,76 @@ def _join_ahead(st, order, at, serial, tried, cache, ahead):
     st.solve_small_together([m for m in made if m is not None], at_least=2)
 
 
-def _merge_order(border: np.ndarray, area: list) -> tuple[np.ndarray, np.ndarray]:
+class _MergeOrder:
     """Every (small chart, neighbour) pair merge_back may try, in the order it tries them: charts by
-    area, smallest first; each chart's neighbours of the same label by shared border length, longest
-    first, at most MERGE_TRIES each. Ranked once per set of charts (after each merge), then walked
-    past the pairs already tried, not ranked again per attempt (docs/decisions/atlas-speed.md)."""
-    if not len(border):
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i, j = border[:, 0].astype(np.int64), border[:, 1].astype(np.int64)
-    o = np.lexsort((j, -border[:, 2], i))                     # each chart's neighbours, longest border first
-    i, j = i[o], j[o]
-    first = np.searchsorted(i, i)                             # i is sorted: its group's first row
-    keep = np.arange(len(i)) - first < MERGE_TRIES
-    i, j = i[keep], j[keep]
-    rank = np.empty(len(area), np.int64)
-    rank[np.argsort(area, kind="stable")] = np.arange(len(area))
-    o = np.lexsort((np.arange(len(i)), rank[i]))             # smallest chart first, then its row order
-    return i[o], j[o]
+    area, smallest first (equal areas by slot); each chart's neighbours of the same label by shared
+    border length, longest first (equal lengths by slot), at most MERGE_TRIES each; pairs already
+    tried (``tried``, by ``serial`` numbers, from either side) are passed over. Kept through merges:
+    only the merged chart and its neighbours are ranked again, and a chart whose pairs were all tried
+    leaves the order until its borders change (ranking every pair after each merge and walking the
+    order from its start was quadratic in the chart count: docs/decisions/atlas-speed.md)."""
 
+    def __init__(self, borders: _Borders | _Table, area: list, serial: list, tried: set):
+        self.borders, self.area, self.serial, self.tried = borders, area, serial, tried
+        self.top = [self._top(k) for k in range(len(area))]
+        self.active = sorted((area[k], k) for k in range(len(area)) if self.top[k])
+        self.key: list[tuple[float, int] | None] = [None] * len(area)   # each chart's entry in `active`
+        for e in self.active:
+            self.key[e[1]] = e
 
-def _first_untried(order: tuple[np.ndarray, np.ndarray], at: int, serial: list, tried: set) -> int:
-    """Index of the first pair of ``order`` from ``at`` on that was not tried (len(order[0]) if none)."""
-    i, j = order
-    while at < len(i) and _pair(serial[i[at]], serial[j[at]]) in tried:
-        at += 1
-    return at
+    def _top(self, k: int) -> tuple[int, ...]:
+        j, w = self.borders.out[k]
+        return tuple(int(x) for x in j[np.lexsort((j, -w))[:MERGE_TRIES]]) if len(j) else ()
+
+    def walk(self):
+        """The untried pairs, in order."""
+        for _, k in self.active:                      # one per chart with untried pairs
+            for j in self.top[k]:
+                if _pair(self.serial[k], self.serial[j]) not in self.tried:
+                    yield k, j
+
+    def first(self) -> tuple[int, int] | None:
+        """The first untried pair, or None; charts found with every pair tried leave the order."""
+        while self.active:                            # one per chart found spent
+            k = self.active[0][1]
+            for j in self.top[k]:
+                if _pair(self.serial[k], self.serial[j]) not in self.tried:
+                    return k, j
+            self._drop(k)
+        return None
+
+    def _drop(self, k: int) -> None:
+        key = self.key[k]
+        if key is not None:
+            del self.active[bisect.bisect_left(self.active, key)]
+            self.key[k] = None
+
+    def merged(self, keep: int, drop: int, changed: list) -> None:
+        """Rank again after ``keep`` became the merge of itself and ``drop`` (now empty); ``changed``:
+        the charts whose borders changed (_Borders.merged)."""
+        self._drop(drop)
+        self.top[drop] = ()
+        for k in changed:                             # the merged chart and its neighbours
+            self._drop(k)
+            self.top[k] = self._top(k)
+            if self.top[k]:
+                self.key[k] = (self.area[k], k)
+                bisect.insort(self.active, self.key[k])
 
 
 def _next_merge(border: np.ndarray, area: list, serial: list, tried: set) -> tuple[int, int] | None:
-    """The next (small chart, neighbour) pair to try (see _merge_order), or None."""
-    order = _merge_order(border, area)
-    at = _first_untried(order, 0, serial, tried)
-    return None if at == len(order[0]) else (int(order[0][at]), int(order[1][at]))
+    """The next (small chart, neighbour) pair to try for charts 0..len(area)-1 with chart_borders'
+    rows ``border`` (see _MergeOrder), or None."""
+    return _MergeOrder(_Table(border, len(area)), area, serial, tried).first()
+
+
+class _Table:
+    """chart_borders' rows as _Borders.out: per chart, its neighbours (ascending) and border lengths."""
+
+    def __init__(self, border: np.ndarray, n: int):
+        i = border[:, 0].astype(np.int64)
+        cut = np.searchsorted(i, np.arange(1, n))      # rows are sorted by (i, j)
+        self.out = list(zip(pieces(border[:, 1].astype(np.int64), cut), pieces(border[:, 2], cut)))
 
 
 def _pair(a, b):
@@ -224,14 +262,16 @@ def chart_borders(charts: list[Chart], cache: dict | None = None) -> np.ndarray:
 
 
 class _Borders:
-    """:func:`chart_borders` of a list of charts kept up to date through merges: the same rows and the
-    same sums (each pair's length added up in the order chart_borders adds it), at a cost per merge
-    that follows the merged charts' neighbourhoods instead of the whole atlas (rebuilding every border
-    after each merge is quadratic in the chart count).
+    """:func:`chart_borders` of merge_back's charts kept up to date through merges, per chart: ``out[k]``
+    is (its neighbours' slots, ascending; the shared border lengths), the same pairs and the same sums
+    as chart_borders' rows of chart k (each pair's length added up in the order chart_borders adds it),
+    at a cost per merge that follows the merged charts' neighbourhoods instead of the whole atlas.
 
-    A merge only welds boundary half-edges away, so the boundary half-edges (keyed by their mesh
-    vertices) are a fixed universe; ``owner`` says which chart (list index) holds each one now.
-    Meshes where two charts hold the same boundary half-edge (not manifold) take chart_borders as it is.
+    ``charts`` is merge_back's list: a merge leaves the joined chart in the lower slot and None in the
+    other, so slots keep their order. A merge only welds boundary half-edges away, so the boundary
+    half-edges (keyed by their mesh vertices) are a fixed universe; ``owner`` says which slot holds
+    each one now. Meshes where two charts hold the same boundary half-edge (not manifold) take
+    chart_borders of every chart after each merge.
     """
 
     def __init__(self, charts: list[Chart], cache: dict):
@@ -241,13 +281,22 @@ class _Borders:
         self.keys = unique_sorted(h[:, 3] * self.n + h[:, 4])
         self.exact = len(self.keys) == len(h)               # every half-edge in one chart only
         if not self.exact:
+            self.out = self._rebuilt()
             return
         self.label = np.array([c.label for c in charts])
         self.rows = [self._rows(c) for c in charts]       # per chart: (key index, twin index or -1, length)
         self.owner = np.full(len(self.keys), -1, np.int64)
         for k, (at, _, _) in enumerate(self.rows):        # one iteration per chart, once
             self.owner[at] = k
-        self.border = np.concatenate([self._out(k) for k in range(len(charts))] + [np.zeros((0, 3))])
+        self.out = [self._out(k) for k in range(len(charts))]
+
+    def _rebuilt(self):
+        """out of every slot from chart_borders of the charts left."""
+        slots = np.array([k for k, c in enumerate(self.charts) if c is not None], np.int64)
+        b = chart_borders([self.charts[k] for k in slots], self.cache)
+        i, j = slots[b[:, 0].astype(np.int64)], slots[b[:, 1].astype(np.int64)]
+        cut = np.searchsorted(i, np.arange(1, len(self.charts)))
+        return list(zip(pieces(j, cut), pieces(b[:, 2], cut)))
 
     def _rows(self, chart):
         _boundary_global([chart], self.cache)              # fills the cache
@@ -260,41 +309,35 @@ class _Borders:
         return at, np.where(self.keys[tw] == twin, tw, -1), w
 
     def _out(self, k):
-        """chart_borders' rows (k, j, length) of chart k, j ascending."""
+        """chart_borders' rows of chart k: (neighbour slots ascending, shared lengths)."""
         _, tw, w = self.rows[k]
         j = np.where(tw >= 0, self.owner[np.maximum(tw, 0)], -1)
         ok = (j >= 0) & (j != k)
         if ok.any():
             ok[ok] &= self.label[j[ok]] == self.label[k]
         if not ok.any():
-            return np.zeros((0, 3))
+            return np.zeros(0, np.int64), np.zeros(0)
         up, inv = np.unique(j[ok], return_inverse=True)
-        return np.column_stack([np.full(len(up), k), up, np.bincount(inv, weights=w[ok])])
+        return up, np.bincount(inv, weights=w[ok])
 
-    def merged(self, keep: int, drop: int) -> np.ndarray:
-        """The borders after ``charts[keep]`` became the merge of itself and ``charts[drop]`` (already
-        deleted from the list, keep < drop)."""
+    def merged(self, keep: int, drop: int) -> list[int]:
+        """Update after ``charts[keep]`` became the merge of itself and ``charts[drop]`` (now None, keep <
+        drop); the slots whose rows changed (the merged chart and its neighbours), ascending."""
         if not self.exact:
-            return chart_borders(self.charts, self.cache)
-        old_keep, old_drop = self.rows[keep], self.rows[drop]
-        del self.rows[drop]
-        self.label = np.delete(self.label, drop)
-        self.owner[old_keep[0]] = -1
-        self.owner[old_drop[0]] = -1
-        self.owner[self.owner > drop] -= 1
+            self.out = self._rebuilt()
+            return [k for k, c in enumerate(self.charts) if c is not None]
+        near = unique_sorted(np.concatenate([[keep], self.out[keep][0], self.out[drop][0]])).astype(np.int64)
+        self.owner[self.rows[keep][0]] = -1
+        self.owner[self.rows[drop][0]] = -1
+        self.rows[drop] = None
+        self.out[drop] = (np.zeros(0, np.int64), np.zeros(0))
         self.rows[keep] = self._rows(self.charts[keep])
         self.label[keep] = self.charts[keep].label
         self.owner[self.rows[keep][0]] = keep
-        b = self.border
-        touched = (b[:, 0] == keep) | (b[:, 0] == drop) | (b[:, 1] == keep) | (b[:, 1] == drop)
-        redo = unique_sorted(np.concatenate([b[touched, 0], b[touched, 1]])).astype(np.int64)
-        redo = unique_sorted(np.where(redo == drop, keep, redo - (redo > drop)))
-        b = b[~touched]
-        b[:, :2] -= b[:, :2] > drop
-        b = b[~np.isin(b[:, 0], redo)]
-        b = np.concatenate([b] + [self._out(int(k)) for k in redo])
-        self.border = b[np.lexsort((b[:, 1], b[:, 0]))]
-        return self.border
+        changed = [int(k) for k in near if k != drop]
+        for k in changed:                                  # the merged chart and its neighbours
+            self.out[k] = self._out(k)
+        return changed
 
 
 def join_charts(a: Chart, b: Chart, cache: dict | None = None) -> Chart | None:
