@@ -10,7 +10,9 @@ of 1 % of the extent), then random options: alpha, contiguous face-label patches
 ``max_charts``, texture size or texel density, ``workers=2``, ``weld=True``. Checked: a valid atlas,
 a least texel share of at least 1/max_stretch^2, at most 0.5 % of the area below 1/4 of its fair share
 (at the default budget or tighter), one input label per chart. A one-line refusal (``UvbakeError``)
-is printed, not counted: an impossible request is refused by design. Exits 1 when a draw fails or
+is printed, not counted: an impossible request is refused by design. Each draw's line gives its CPU
+seconds, and the last line the three slowest draws (a cost growing faster than the input shows there
+first: seed 26's draw 34 found merge_back quadratic in the chart count). Exits 1 when a draw fails or
 crashes; ``--only K`` reruns draw K alone (the draws before it are drawn, not run) and saves its input
 to sweep_case.npz. Findings and what they changed: docs/decisions/atlas.md (ninth session).
 """
@@ -148,6 +150,7 @@ def main(argv=None) -> int:
     bases = _bases()
     names = sorted(bases)
     failed, refused, t0 = 0, 0, time.process_time()
+    slow: list = []                                     # (CPU s, draw, input, triangles) of each atlas made
     for i in range(args.draws if args.only is None else args.only + 1):      # one iteration per draw
         name = names[rng.integers(len(names))]
         desc = [name]
@@ -159,22 +162,30 @@ def main(argv=None) -> int:
         if args.only is not None:
             np.savez("sweep_case.npz", V=V, F=F, **{k: np.asarray(v) for k, v in kw.items() if v is not None})
         shown = {k: v for k, v in kw.items() if k != "face_labels"} | ({"labels": True} if "face_labels" in kw else {})
+        t = time.process_time()
         try:
             res = uvbake.unwrap((V, F), **kw)
         except uvbake.UvbakeError as exc:
             refused += 1
-            print(f"{i:4d} {' '.join(desc):34s} refused: {str(exc)[:150]}", flush=True)
+            slow.append((time.process_time() - t, i, " ".join(desc) + ", refused", len(F)))
+            print(f"{i:4d} {' '.join(desc):34s} refused after {slow[-1][0]:.2f} s: {str(exc)[:150]}", flush=True)
             continue
         except Exception as exc:                        # a crash is a failure, reported and counted
             failed += 1
             print(f"{i:4d} {' '.join(desc):34s} CRASH {type(exc).__name__}: {exc}", flush=True)
             continue
+        cpu = time.process_time() - t
+        slow.append((cpu, i, " ".join(desc), len(F)))
         bad = _failures(res, V, F, kw)
         failed += bool(bad)
         print(f"{i:4d} {' '.join(desc):34s} {str(shown):70s} charts {len(res.charts):5d} "
-              f"least {res.report['min_texel_share']:.3f}" + (f"  FAILED: {'; '.join(bad)}" if bad else ""), flush=True)
+              f"least {res.report['min_texel_share']:.3f} cpu {cpu:6.2f} s" + (f"  FAILED: {'; '.join(bad)}" if bad else ""),
+              flush=True)
     print(f"# seed {args.seed}: {failed} failed, {refused} refused, of {args.draws if args.only is None else 1} "
           f"draws in {time.process_time() - t0:.0f} s of CPU")
+    # the slowest draws (this process's CPU; workers=2 draws spend some in their workers): where a cost
+    # grows faster than the input shows first
+    print("# slowest: " + ", ".join(f"draw {i} {cpu:.1f} s ({d}, {n} triangles)" for cpu, i, d, n in sorted(slow)[::-1][:3]))
     return 1 if failed else 0
 
 
