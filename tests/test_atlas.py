@@ -748,6 +748,39 @@ def test_no_pair_sharing_a_chart_with_the_next_try_is_joined_ahead(monkeypatch):
     assert sum(len(c) for c in calls) <= 12
 
 
+def test_merges_proven_ahead_skip_only_checks_that_would_find_no_overlap(monkeypatch):
+    # the merged charts made ahead whose boundary proves them overlap-free (one pass for all) skip
+    # their own overlap check in their turn: every one marked must be overlap-free by that check, and
+    # the charts must be those made without the marks
+    from trimesh import creation
+
+    from uvbake.atlas import merge
+    from uvbake.atlas.charting import make_charts
+    from uvbake.atlas.guarantee import overlapping_pairs
+
+    rng = np.random.default_rng(7)
+    sphere = creation.icosphere(3)
+    V = np.asarray(sphere.vertices) * (1 + 0.15 * rng.standard_normal((len(sphere.vertices), 1)))
+    F = np.asarray(sphere.faces)
+    marked = []
+    real = merge._prove_ahead
+
+    def checked(st, ahead, keys):
+        real(st, ahead, keys)
+        for k in keys:
+            if ahead[k][3]:
+                m = ahead[k][2]
+                marked.append(not len(overlapping_pairs([m], [st.solved[id(m)][1][0]])[0]))
+
+    monkeypatch.setattr(merge, "_prove_ahead", checked)
+    charts, _, log = make_charts(V, F)
+    assert len(marked) >= 5 and all(marked)
+    monkeypatch.setattr(merge, "_prove_ahead", lambda *a: None)
+    charts1, _, log1 = make_charts(V, F)
+    assert [c.get("merged") for c in log["budget_cuts"]] == [c.get("merged") for c in log1["budget_cuts"]]
+    assert [c.face_index.tolist() for c in charts] == [c.face_index.tolist() for c in charts1]
+
+
 def test_a_joins_disk_check_is_topologys_verdict():
     # join_charts asks only for the edges and boundary loops of the joined chart (one piece, every
     # vertex used); its verdict must be topology()'s "genus 0 with a boundary" on every kind of piece

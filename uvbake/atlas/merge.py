@@ -57,7 +57,7 @@ def merge_back(st: _Charting) -> None:
         if key not in ahead:
             _join_ahead(st, order.walk(), cache, ahead)
         tried.add(_pair(serial[i], serial[j]))         # a pair is tried once, from either side
-        merged = ahead.pop(key)[2]
+        _, _, merged, proven = ahead.pop(key)
         if merged is None:
             continue
         uv, logf = st.conformal(merged)
@@ -70,7 +70,7 @@ def merge_back(st: _Charting) -> None:
         floor = min(-MERGE_SHARE_OF_BUDGET * st.bound, np.log(max(min(least[i], least[j]), np.finfo(float).tiny)))
         if not (np.all(np.isfinite(logf)) and logf.min() >= max(-st.bound, floor)):
             continue
-        if len(overlapping_pairs([merged], [uv])[0]):
+        if not proven and len(overlapping_pairs([merged], [uv])[0]):
             continue
         keep, drop = min(i, j), max(i, j)
         st.budget_cuts.append(dict(merged=[st.done[i].name, st.done[j].name], triangles=int(len(merged.F)),
@@ -91,11 +91,12 @@ MERGE_AHEAD = 16
 def _join_ahead(st, pairs, cache, ahead):
     """Join the first of the untried ``pairs`` (merge_back's order, from the pair tried next) and the
     next MERGE_AHEAD - 1 whose merged chart would have at most BATCH_FACES triangles and share no chart
-    with the first into ``ahead`` (the pair's chart ids -> (chart, chart, merged chart or None)) and solve
-    the small merged charts' conformal maps together (a kit or a spiky surface tries dozens of merges of
-    a few dozen triangles each; should the first pair merge, a pair holding one of its charts would be
-    wasted work). A merge replaces its charts by a new one, and an entry holds its two charts (their ids
-    stay theirs), so a pair made ahead is exactly what its turn would make."""
+    with the first into ``ahead`` (the pair's chart ids -> (chart, chart, merged chart or None, proven
+    overlap-free)) and solve the small merged charts' conformal maps together (a kit or a spiky surface
+    tries dozens of merges of a few dozen triangles each; should the first pair merge, a pair holding
+    one of its charts would be wasted work). A merge replaces its charts by a new one, and an entry
+    holds its two charts (their ids stay theirs), so a pair made ahead is exactly what its turn would
+    make."""
     from uvbake.atlas.charting import BATCH_FACES
 
     made, busy = [], set()                             # busy: the charts of the first pair
@@ -108,11 +109,35 @@ def _join_ahead(st, pairs, cache, ahead):
             continue                                   # joined in its turn (a merge before may waste it)
         if not n:
             busy.update((id(a), id(b)))
-        ahead[key] = (a, b, join_charts(a, b, cache))
-        made.append(ahead[key][2])
+        ahead[key] = (a, b, join_charts(a, b, cache), False)
+        made.append(key)
         if len(made) == MERGE_AHEAD:
             break
-    st.solve_small_together([m for m in made if m is not None], at_least=2)
+    st.solve_small_together([ahead[k][2] for k in made if ahead[k][2] is not None], at_least=2)
+    _prove_ahead(st, ahead, made)
+
+
+def _prove_ahead(st, ahead, keys):
+    """Mark the merged charts made ahead (``ahead[key]``'s last field) whose conformal map, solved ahead, is
+    within the budget and whose boundary proves it overlap-free: one pass of
+    :func:`uvbake.validate.boundary.proven_injective` for all of them (each chart's verdict is its own),
+    so their turn skips overlapping_pairs' own (about 1 ms a chart: most of a small merge's check). A
+    chart not proven here is checked in its turn as before."""
+    from uvbake.validate.boundary import proven_injective
+
+    todo = []
+    for k in keys:                                     # one per pair made ahead
+        m = ahead[k][2]
+        if m is not None and id(m) in st.solved:
+            logf = st.solved[id(m)][1][1]
+            if np.all(np.isfinite(logf)) and logf.min() >= -st.bound:
+                todo.append(k)
+    if len(todo) < 2:
+        return
+    sure = proven_injective([st.solved[id(ahead[k][2])][1][0] for k in todo], [ahead[k][2].F for k in todo])
+    for k, ok in zip(todo, sure):
+        if ok:
+            ahead[k] = (*ahead[k][:3], True)
 
 
 class _MergeOrder:
