@@ -458,7 +458,7 @@ def test_borders_kept_through_merges_equal_the_borders_rebuilt_from_scratch(monk
     from uvbake.atlas import merge
     from uvbake.atlas.charting import make_charts
 
-    seen, walks = [], []
+    seen, walks, numbers = [], [], []
     update, rank = merge._Borders.merged, merge._MergeOrder.merged
 
     def checked(self, keep, drop):
@@ -472,6 +472,8 @@ def test_borders_kept_through_merges_equal_the_borders_rebuilt_from_scratch(monk
         rank(self, keep, drop, changed)
         fresh = merge._MergeOrder(self.borders, self.area, self.serial, self.tried)
         walks.append((list(self.walk()), list(fresh.walk())))
+        live = [self.serial[k] for k, c in enumerate(self.borders.charts) if c is not None]
+        numbers.append(len(set(live)) == len(live))      # "tried" is by number: two charts, two numbers
 
     monkeypatch.setattr(merge._Borders, "merged", checked)
     monkeypatch.setattr(merge._MergeOrder, "merged", ranked)
@@ -482,6 +484,7 @@ def test_borders_kept_through_merges_equal_the_borders_rebuilt_from_scratch(monk
     assert len(seen) >= 5 and all(seen)
     assert len(walks) == len(seen) and all(kept == fresh for kept, fresh in walks)
     assert sum(len(kept) > 0 for kept, _ in walks) >= 3          # orders with pairs still to try
+    assert all(numbers)
 
 
 def test_borders_rebuilt_after_every_merge_give_the_same_charts(monkeypatch):

@@ -40,7 +40,7 @@ def merge_back(st: _Charting) -> None:
     from uvbake.atlas.guarantee import area_factors, overlapping_pairs
 
     serial = list(range(len(st.done)))                 # identity of each chart (merged ones get new numbers)
-    alive = len(st.done)
+    fresh = len(st.done)                               # the next merged chart's number
     tried: set[tuple[int, int]] = set()
     cache: dict = {}                                   # boundary of each chart, computed once
     _fill_boundaries(st.done, cache)
@@ -76,9 +76,8 @@ def merge_back(st: _Charting) -> None:
         st.budget_cuts.append(dict(merged=[st.done[i].name, st.done[j].name], triangles=int(len(merged.F)),
                                    least_factor=float(np.exp(logf.min()))))
         st.done[keep], st.starts[keep], area[keep] = merged, uv, area[i] + area[j]
-        least[keep], serial[keep] = float(np.exp(logf.min())), alive + len(tried)
+        least[keep], serial[keep], fresh = float(np.exp(logf.min())), fresh, fresh + 1
         st.done[drop] = st.starts[drop] = None
-        alive -= 1
         order.merged(keep, drop, borders.merged(keep, drop))
     st.done[:] = [c for c in st.done if c is not None]
     st.starts[:] = [uv for uv in st.starts if uv is not None]
@@ -118,8 +117,8 @@ def _join_ahead(st, pairs, cache, ahead):
 
 
 def _prove_ahead(st, ahead, keys):
-    """Mark the merged charts made ahead (``ahead[key]``'s last field) whose conformal map, solved ahead, is
-    within the budget and whose boundary proves it overlap-free: one pass of
+    """Mark the merged charts made ahead (``ahead[key]``'s last field) whose conformal map, solved
+    ahead, is within the budget and whose boundary proves it overlap-free: one pass of
     :func:`uvbake.validate.boundary.proven_injective` for all of them (each chart's verdict is its own),
     so their turn skips overlapping_pairs' own (about 1 ms a chart: most of a small merge's check). A
     chart not proven here is checked in its turn as before."""
