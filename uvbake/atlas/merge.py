@@ -79,8 +79,9 @@ def merge_back(st: _Charting) -> None:
         least[keep], serial[keep], fresh = float(np.exp(logf.min())), fresh, fresh + 1
         st.done[drop] = st.starts[drop] = None
         order.merged(keep, drop, borders.merged(keep, drop))
-    st.done[:] = [c for c in st.done if c is not None]
-    st.starts[:] = [uv for uv in st.starts if uv is not None]
+    live = [k for k, c in enumerate(st.done) if c is not None]     # the slots a merge did not empty
+    st.done[:] = [st.done[k] for k in live]
+    st.starts[:] = [st.starts[k] for k in live]
 
 
 #: Pairs joined ahead of their turn: their small merged charts' conformal maps are solved together.
